@@ -1,0 +1,126 @@
+"""The compiled policy table: a finite-state controller in a versioned, hashed file.
+
+Layout (little-endian):
+    magic   8 bytes  b"RGTABLE\\n"
+    version u16      FORMAT_VERSION
+    hlen    u32      length of the header
+    header  hlen     UTF-8 JSON: model, parameters, names, dimensions, values, bounds
+    action  N bytes  action[node]
+    next    N*Z*w    next[node][obs], w = header["index_bytes"] (1 or 2)
+    sha256  32 bytes over everything before it
+
+The online core and the C generator both read it through `decode`; a file that fails any
+check is refused with a TableError that says what is wrong. Pure: bytes in, values out.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import struct
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+MAGIC = b"RGTABLE\n"
+FORMAT_VERSION = 1
+_PREFIX = struct.Struct("<8sHI")
+_DIGEST = 32
+REQUIRED = ("model", "states", "actions", "observations", "nodes", "start", "index_bytes")
+
+
+class TableError(ValueError):
+    """A table file that must not be run; the message names the problem."""
+
+
+@dataclass(frozen=True)
+class Table:
+    """A decoded, checked controller: node -> action, (node, observation) -> node."""
+
+    header: Mapping[str, Any]
+    action: tuple[int, ...]
+    next: tuple[tuple[int, ...], ...]
+    sha256: str
+
+    @property
+    def model(self) -> str:
+        return str(self.header["model"])
+
+    @property
+    def nodes(self) -> int:
+        return len(self.action)
+
+    @property
+    def observations(self) -> tuple[str, ...]:
+        return tuple(self.header["observations"])
+
+    @property
+    def actions(self) -> tuple[str, ...]:
+        return tuple(self.header["actions"])
+
+    @property
+    def start(self) -> int:
+        return int(self.header["start"])
+
+
+def encode(header: Mapping[str, Any], action: Sequence[int], nxt: Sequence[Sequence[int]]) -> bytes:
+    """Serialise a controller; the caller's header must name model, states, actions, observations."""
+    n = len(action)
+    z = len(header["observations"])
+    width = 1 if n <= 256 else 2
+    head = dict(header)
+    head.update(nodes=n, index_bytes=width, format_version=FORMAT_VERSION)
+    head.setdefault("start", 0)
+    text = json.dumps(head, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    body = bytearray(_PREFIX.pack(MAGIC, FORMAT_VERSION, len(text)))
+    body += text
+    body += bytes(int(a) for a in action)
+    fmt = "B" if width == 1 else "H"
+    for row in nxt:
+        if len(row) != z:
+            raise TableError(f"next row has {len(row)} entries, expected {z} observations")
+        body += struct.pack(f"<{z}{fmt}", *(int(m) for m in row))
+    body += hashlib.sha256(body).digest()
+    return bytes(body)
+
+
+def decode(data: bytes, expect_model: str | None = None) -> Table:
+    """Check and decode a table file's bytes; refuse anything inconsistent."""
+    if len(data) < _PREFIX.size + _DIGEST:
+        raise TableError(f"too short to be a table ({len(data)} bytes)")
+    magic, version, hlen = _PREFIX.unpack_from(data)
+    if magic != MAGIC:
+        raise TableError("not a railguard table (bad magic bytes)")
+    if version != FORMAT_VERSION:
+        raise TableError(f"table format version {version} is not supported (this build reads {FORMAT_VERSION})")
+    digest = hashlib.sha256(data[:-_DIGEST]).digest()
+    if digest != data[-_DIGEST:]:
+        raise TableError("corrupted: SHA-256 over the content does not match the one stored in the file")
+    start = _PREFIX.size
+    try:
+        header = json.loads(data[start:start + hlen].decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise TableError(f"header is not valid JSON: {exc}") from None
+    if not isinstance(header, dict):
+        raise TableError("header is not a JSON object")
+    missing = [k for k in REQUIRED if k not in header]
+    if missing:
+        raise TableError(f"header lacks {', '.join(missing)}")
+    n, z, width = header["nodes"], len(header["observations"]), header["index_bytes"]
+    n_actions = len(header["actions"])
+    if not (isinstance(n, int) and n > 0) or width not in (1, 2):
+        raise TableError(f"bad dimensions: nodes={n!r}, index_bytes={width!r}")
+    body = data[start + hlen:-_DIGEST]
+    if len(body) != n + n * z * width:
+        raise TableError(f"body is {len(body)} bytes, expected {n + n * z * width} for {n} nodes x {z} observations")
+    action = tuple(body[:n])
+    if any(a >= n_actions for a in action):
+        raise TableError(f"an action index is >= the {n_actions} actions")
+    fmt = "B" if width == 1 else "H"
+    flat = struct.unpack_from(f"<{n * z}{fmt}", body, n)
+    if any(m >= n for m in flat):
+        raise TableError(f"a next-node index is >= the {n} nodes")
+    nxt = tuple(flat[i * z:(i + 1) * z] for i in range(n))
+    if not (isinstance(header["start"], int) and 0 <= header["start"] < n):
+        raise TableError(f"start node {header['start']!r} out of range")
+    if expect_model is not None and header["model"] != expect_model:
+        raise TableError(f"table is for model {header['model']!r}, expected {expect_model!r}")
+    return Table(header=header, action=action, next=nxt, sha256=digest.hex())

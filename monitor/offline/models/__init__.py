@@ -1,0 +1,80 @@
+"""The papers' models by name, with their default solver settings.
+
+`load("m2", "my.toml")` builds a model with the file's overrides: top-level keys set model
+parameters, a `[solver]` table sets solver settings and `max_nodes`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+from ..params import ConfigError, override, read_toml
+from ..pomdp import POMDP
+from ..solver import SolverSettings
+from . import model1, model2
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How to solve and compile: solver settings plus the controller's node budget."""
+
+    settings: SolverSettings
+    max_nodes: int = 255
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    title: str
+    params: Any
+    build: Callable[[Any], POMDP]
+    plan: Plan
+
+
+MODELS = {
+    "m1": ModelSpec(
+        "seed 000: 4-state anti-collision POMDP (zones)",
+        model1.Model1Params(),
+        model1.build,
+        Plan(SolverSettings(max_beliefs=200, max_iterations=400, expand_every=10), max_nodes=16),
+    ),
+    "m2": ModelSpec(
+        "seed 001: 144-state anti-collision POMDP (distance, speed, type, track, brake)",
+        model2.Model2Params(),
+        model2.build,
+        Plan(SolverSettings(max_beliefs=400, max_iterations=60, expand_every=5, time_budget_s=40.0), max_nodes=255),
+    ),
+}
+
+
+def plan_from(config: dict, plan: Plan) -> Plan:
+    """Apply a `[solver]` table to a plan (unknown keys refused)."""
+    solver = dict(config.get("solver", {}))
+    if not isinstance(solver, dict):
+        raise ConfigError("[solver] must be a table")
+    max_nodes = solver.pop("max_nodes", plan.max_nodes)
+    if isinstance(max_nodes, bool) or not isinstance(max_nodes, int) or not 1 <= max_nodes <= 65535:
+        raise ConfigError(f"max_nodes must be a whole number in 1..65535, got {max_nodes!r}")
+    return Plan(override(plan.settings, solver), max_nodes)
+
+
+def load(name: str, config_path: Optional[str | Path] = None) -> tuple[POMDP, Plan]:
+    """Build a named model, applying a TOML file's overrides if one is given."""
+    if name not in MODELS:
+        raise ConfigError(f"unknown model {name!r}; known: {', '.join(MODELS)}")
+    spec = MODELS[name]
+    config = read_toml(config_path) if config_path else {}
+    params = {k: v for k, v in config.items() if k != "solver"}
+    try:
+        p = override(spec.params, params)
+    except ConfigError as exc:
+        raise ConfigError(f"{config_path}: {exc}") from None
+    return spec.build(p), plan_from(config, spec.plan)
+
+
+def default_plan() -> Plan:
+    """Settings for a model read from a .pomdp file."""
+    return Plan(SolverSettings(), max_nodes=255)
+
+
+__all__ = ["MODELS", "Plan", "load", "plan_from", "default_plan"]

@@ -1,0 +1,78 @@
+"""Shared fixtures: the Tiger problem, the papers' models and their solved tables.
+
+Everything is session-scoped: building Model 2 and solving Model 1 are done once.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TIGER_PATH = ROOT / "examples" / "tiger.pomdp"
+TABLES = ROOT / "monitor" / "tables"
+
+
+def independent_values(model, action, nxt) -> np.ndarray:
+    """V[n, s] of a finite-state controller by a dense solve written from the definition:
+
+    V[n, s] = R[s, a_n] + g * sum_{s', o} T[a_n, s, s'] O[a_n, s', o] V[next[n, o], s'].
+    Independent of monitor.offline.controller (no shared code).
+    """
+    S = len(model.states)
+    Z = len(model.observations)
+    N = len(action)
+    M = np.eye(N * S)
+    r = np.zeros(N * S)
+    for n in range(N):
+        a = int(action[n])
+        for s in range(S):
+            i = n * S + s
+            r[i] = model.R[s, a]
+            for s2 in range(S):
+                t = model.T[a, s, s2]
+                if t == 0.0:
+                    continue
+                for o in range(Z):
+                    m = int(nxt[n][o])
+                    M[i, m * S + s2] -= model.discount * t * model.O[a, s2, o]
+    return np.linalg.solve(M, r).reshape(N, S)
+
+
+@pytest.fixture(scope="session")
+def tiger():
+    from monitor.offline.pomdp_file import read
+
+    return read(TIGER_PATH)
+
+
+@pytest.fixture(scope="session")
+def tiger_solved(tiger):
+    from monitor.offline.controller import compile_controller
+    from monitor.offline.solver import SolverSettings, solve
+
+    sol = solve(tiger, SolverSettings())
+    return sol, compile_controller(tiger, sol)
+
+
+@pytest.fixture(scope="session")
+def m1():
+    from monitor.offline.models import load
+
+    return load("m1")
+
+
+@pytest.fixture(scope="session")
+def m1_result(m1):
+    from monitor.offline import pipeline
+
+    model, plan = m1
+    return pipeline.run(model, plan)
+
+
+@pytest.fixture(scope="session")
+def m2():
+    from monitor.offline.models import load
+
+    return load("m2")
