@@ -50,11 +50,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .offline import models, pipeline, pomdp_file
-    from .offline.params import read_toml
-
     if args.pomdp:
         model = pomdp_file.read(args.pomdp)
-        plan = models.plan_from(read_toml(args.config), models.default_plan()) if args.config else models.default_plan()
+        plan = models.plan_for_pomdp_file(args.config)
     else:
         model, plan = models.load(args.model, args.config)
     settings = plan.settings

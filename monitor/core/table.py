@@ -104,6 +104,10 @@ def decode(data: bytes, expect_model: str | None = None) -> Table:
     missing = [k for k in REQUIRED if k not in header]
     if missing:
         raise TableError(f"header lacks {', '.join(missing)}")
+    for key in ("states", "actions", "observations"):
+        names = header[key]
+        if not isinstance(names, list) or not names or not all(isinstance(x, str) for x in names):
+            raise TableError(f"header {key!r} must be a non-empty list of names")
     n, z, width = header["nodes"], len(header["observations"]), header["index_bytes"]
     n_actions = len(header["actions"])
     if not (isinstance(n, int) and n > 0) or width not in (1, 2):

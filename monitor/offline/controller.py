@@ -1,33 +1,50 @@
 """Compile alpha vectors into a finite-state controller and evaluate it exactly.
 
-A controller is `action[node]`, `next[node][obs]` and a start node. It is built by
-following witness beliefs (DESIGN.md section 6), improved by re-pointing edges to the
-node with the best exact value at the successor belief, pruned to what the start node
-reaches and minimised (bisimilar nodes merged). Its value is computed by solving
-(I - g P) v = r over (node, state) pairs, so the number we ship is exact, not the
-solver's estimate.
+A controller is `action[node]`, `next[node][obs]` and a start node; during compilation
+each node also carries the belief it stands for. The compiler
+
+1. follows witness beliefs (DESIGN.md section 6): node k acts as alpha k and on
+   observation o goes to the best alpha at the Bayes successor of its witness;
+2. improves it by point-based policy iteration: evaluate exactly, re-point every edge to
+   the node with the best exact value at the successor belief, add a backed-up node
+   wherever a one-step lookahead on the exact values beats every node (at the solver's
+   belief points and at the beliefs the nodes are really visited with), prune to what the
+   start node reaches, cut to a node budget by visit frequency, merge bisimilar nodes;
+   a round is kept only if the exact value at b0 rises;
+3. evaluates the result exactly: (I - g P) v = r over (node, state) pairs.
+
+So the value we ship is exact, never the solver's estimate.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .pomdp import POMDP
-from .solver import Solution, successor_beliefs
+from .solver import Solution
+
+CHUNK = 64  # beliefs per vectorised lookahead block (bounds memory at CHUNK x Z x N)
 
 
 @dataclass(frozen=True)
 class Controller:
-    action: np.ndarray   # (N,) int
-    next: np.ndarray     # (N, Z) int
+    action: np.ndarray                     # (N,) int
+    next: np.ndarray                       # (N, Z) int
     start: int
+    beliefs: Optional[np.ndarray] = None   # (N, S) belief each node stands for (compile time only)
 
     @property
     def nodes(self) -> int:
         return int(self.action.shape[0])
+
+    def subset(self, order: np.ndarray, remap: np.ndarray, start: int) -> "Controller":
+        """Nodes `order` (old ids) renumbered by `remap[old] = new`."""
+        beliefs = None if self.beliefs is None else self.beliefs[order]
+        return Controller(self.action[order], remap[self.next[order]], start, beliefs)
 
 
 @dataclass(frozen=True)
@@ -37,6 +54,11 @@ class Compiled:
     value: float            # value at the model's start belief
     naive_value: float      # value of the witness-following controller before improvement
     improvement_rounds: int
+
+
+# ----------------------------------------------------------------------------- evaluation
+
+DIRECT_SOLVE_LIMIT = 6000  # (node, state) pairs up to which a sparse LU is cheaper than GMRES
 
 
 def closed_loop_matrix(model: POMDP, ctrl: Controller) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -50,12 +72,11 @@ def closed_loop_matrix(model: POMDP, ctrl: Controller) -> tuple[sp.csr_matrix, n
     rows, cols, vals = [], [], []
     for n in range(N):
         a = int(ctrl.action[n])
-        # W[s', m] = sum over o with next[n, o] == m of O[a, s', o]
-        W = np.zeros((S, N))
+        W = np.zeros((S, N))  # W[s', m] = sum of O[a, s', o] over o with next[n, o] == m
         np.add.at(W.T, ctrl.next[n], model.O[a].T)
         s_idx, t_idx = np.nonzero(model.T[a])
         tv = model.T[a][s_idx, t_idx]
-        Wt = W[t_idx]                       # (nnzT, N)
+        Wt = W[t_idx]
         k, m = np.nonzero(Wt)
         rows.append(n * S + s_idx[k])
         cols.append(m * S + t_idx[k])
@@ -63,11 +84,54 @@ def closed_loop_matrix(model: POMDP, ctrl: Controller) -> tuple[sp.csr_matrix, n
     P = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(N * S, N * S)
     )
-    r = model.R[np.tile(np.arange(S), N), np.repeat(ctrl.action, S)]
-    return P, r
+    return P, rewards(model, ctrl)
 
 
-DIRECT_SOLVE_LIMIT = 6000  # (node, state) pairs up to which a sparse LU is cheaper than GMRES
+def rewards(model: POMDP, ctrl: Controller) -> np.ndarray:
+    S = model.shape[0]
+    return model.R[np.tile(np.arange(S), ctrl.nodes), np.repeat(ctrl.action, S)]
+
+
+@dataclass(frozen=True)
+class EdgeWeights:
+    """The controller's edges aggregated by target: for each (node n, next node m) pair l,
+    w[l, s'] = sum of O[a_n, s', o] over the observations o with next[n, o] == m.
+
+    Nodes reach few distinct next nodes, so the L pairs are far fewer than N x Z edges:
+    this makes one application of P (or P^T) cost L x S instead of N x Z x S.
+    """
+
+    src: np.ndarray     # (L,) node n, sorted
+    dst: np.ndarray     # (L,) next node m
+    w: np.ndarray       # (L, S)
+    src_starts: np.ndarray  # reduceat offsets of each node's pairs
+    by_dst: np.ndarray  # permutation sorting pairs by dst
+    dst_starts: np.ndarray
+
+    @staticmethod
+    def of(model: POMDP, ctrl: Controller) -> "EdgeWeights":
+        S = model.shape[0]
+        src, dst, w = [], [], []
+        for n in range(ctrl.nodes):
+            targets, inverse = np.unique(ctrl.next[n], return_inverse=True)
+            wn = np.zeros((len(targets), S))
+            np.add.at(wn, inverse.ravel(), model.O[ctrl.action[n]].T)
+            src.append(np.full(len(targets), n))
+            dst.append(targets)
+            w.append(wn)
+        src_a, dst_a = np.concatenate(src), np.concatenate(dst)
+        by_dst = np.argsort(dst_a, kind="stable")
+        return EdgeWeights(src_a, dst_a, np.vstack(w), np.flatnonzero(np.r_[True, src_a[1:] != src_a[:-1]]),
+                           by_dst, np.flatnonzero(np.r_[True, np.diff(dst_a[by_dst]) != 0]))
+
+
+def _by_action(model: POMDP, ctrl: Controller, X: np.ndarray, transpose: bool) -> np.ndarray:
+    """Row n of X times T[a_n] (transpose=False: X @ T, mass moving) or T[a_n] @ row (values)."""
+    out = np.empty_like(X)
+    for a in np.unique(ctrl.action):
+        idx = ctrl.action == a
+        out[idx] = X[idx] @ (model.T[a].T if transpose else model.T[a])
+    return out
 
 
 def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12) -> np.ndarray:
@@ -75,29 +139,26 @@ def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12) -> np.ndarray:
 
     Small systems use a sparse LU; large ones GMRES on the operator v -> (I - g P) v applied
     without forming P (for Model 2, P has tens of millions of non-zeros). The residual is
-    checked either way, so a returned value is a solution to `tol` relative to the rewards.
+    checked either way, so a returned value solves the system to 1e-8 of the reward scale.
     """
     S = model.shape[0]
     N = ctrl.nodes
+    r = rewards(model, ctrl)
     if N * S <= DIRECT_SOLVE_LIMIT:
-        P, r = closed_loop_matrix(model, ctrl)
+        P, _ = closed_loop_matrix(model, ctrl)
         M = sp.identity(N * S, format="csc") - model.discount * P.tocsc()
         v = np.asarray(spla.spsolve(M, r))
     else:
-        r = model.R[np.tile(np.arange(S), N), np.repeat(ctrl.action, S)]
-        T_n = model.T[ctrl.action]                    # (N, S, S)
-        O_n = model.O[ctrl.action]                    # (N, S, Z)
+        E = EdgeWeights.of(model, ctrl)
         g = model.discount
 
         def apply(v: np.ndarray) -> np.ndarray:
             V = v.reshape(N, S)
-            # W[n, s'] = sum_o O[a_n, s', o] V[next[n, o], s']
-            W = np.einsum("nzt,ntz->nt", V[ctrl.next], O_n)
-            return v - g * np.matmul(T_n, W[:, :, None]).ravel()
+            W = np.add.reduceat(E.w * V[E.dst], E.src_starts, axis=0)   # (N, S')
+            return v - g * _by_action(model, ctrl, W, transpose=True).ravel()
 
-        op = spla.LinearOperator((N * S, N * S), matvec=apply, dtype=np.float64)
-        v, info = spla.gmres(op, r, rtol=tol, atol=0.0, restart=200, maxiter=50)
-        M = op
+        M = spla.LinearOperator((N * S, N * S), matvec=apply, dtype=np.float64)
+        v, _ = spla.gmres(M, r, rtol=tol, atol=0.0, restart=200, maxiter=50)
     scale = max(1.0, float(np.abs(r).max()))
     residual = float(np.abs(M @ v - r).max())
     if not residual <= 1e-8 * scale:
@@ -105,126 +166,201 @@ def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12) -> np.ndarray:
     return v.reshape(N, S)
 
 
+def value_at(model: POMDP, ctrl: Controller, V: np.ndarray) -> float:
+    return float(V[ctrl.start] @ model.b0)
+
+
+def occupancy(model: POMDP, ctrl: Controller, iterations: int = 80) -> np.ndarray:
+    """Discounted expected visits x[n, s] of (node, state) from (start, b0): x = e + g P^T x.
+
+    Used to rank nodes and to find the belief a node is really visited with, so a truncated
+    iteration (relative error g^iterations, 1.6 % for Model 1's and 2's g = 0.95) is enough.
+    """
+    S = model.shape[0]
+    N = ctrl.nodes
+    E = EdgeWeights.of(model, ctrl)
+    e = np.zeros((N, S))
+    e[ctrl.start] = model.b0
+    x = e.copy()
+    targets = E.dst[E.by_dst][E.dst_starts]
+    for _ in range(iterations):
+        Y = _by_action(model, ctrl, x, transpose=False)           # mass after moving, (N, S')
+        flow = (Y[E.src] * E.w)[E.by_dst]
+        x = e.copy()
+        x[targets] += model.discount * np.add.reduceat(flow, E.dst_starts, axis=0)
+    return x
+
+
+# ----------------------------------------------------------------------------- lookahead
+
+def lookahead(model: POMDP, V: np.ndarray, beliefs: np.ndarray, a: int) -> tuple[np.ndarray, np.ndarray]:
+    """For action a at each belief: (one-step value on V, best next node per observation).
+
+    Observations impossible at a belief go to the best node for the predicted belief.
+    """
+    S, A, Z = model.shape
+    q = np.zeros(len(beliefs))
+    nxt = np.zeros((len(beliefs), Z), dtype=np.int64)
+    for lo in range(0, len(beliefs), CHUNK):
+        b = beliefs[lo:lo + CHUNK]
+        pred = b @ model.T[a]                                   # (P, S)
+        unnorm = pred[:, None, :] * model.O[a].T[None, :, :]    # (P, Z, S): p(o) * tau(b, a, o)
+        vals = (unnorm.reshape(-1, S) @ V.T).reshape(len(b), Z, -1)  # p(o) * value of each node
+        pick = vals.argmax(axis=2)
+        impossible = unnorm.sum(axis=2) <= 0.0
+        if impossible.any():
+            fallback = (pred @ V.T).argmax(axis=1)
+            pick = np.where(impossible, fallback[:, None], pick)
+        nxt[lo:lo + CHUNK] = pick
+        q[lo:lo + CHUNK] = b @ model.R[:, a] + model.discount * vals.max(axis=2).sum(axis=1)
+    return q, nxt
+
+
+def backup_nodes(model: POMDP, V: np.ndarray, beliefs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Best (action, edges, value) at each belief; ties go to the later, stronger-braking action."""
+    best_q = np.full(len(beliefs), -np.inf)
+    best_a = np.zeros(len(beliefs), dtype=np.int64)
+    best_n = np.zeros((len(beliefs), model.shape[2]), dtype=np.int64)
+    for a in range(model.shape[1]):
+        q, nxt = lookahead(model, V, beliefs, a)
+        better = q >= best_q - 1e-12 * np.maximum(1.0, np.abs(q))
+        best_q = np.where(better, q, best_q)
+        best_a[better] = a
+        best_n[better] = nxt[better]
+    return best_a, best_n, best_q
+
+
+# ----------------------------------------------------------------------------- structure
+
 def follow_witnesses(model: POMDP, sol: Solution) -> Controller:
     """Node k acts as alpha k; on observation o go to the best alpha at tau(witness_k, a_k, o)."""
     Z = model.shape[2]
     nxt = np.zeros((len(sol.alphas), Z), dtype=np.int64)
-    for k, (b, a) in enumerate(zip(sol.witnesses, sol.actions)):
-        succ, _ = successor_beliefs(model, b, int(a))
-        nxt[k] = (succ @ sol.alphas.T).argmax(axis=1)
+    for a in np.unique(sol.actions):
+        idx = np.flatnonzero(sol.actions == a)
+        _, nxt[idx] = lookahead(model, sol.alphas, sol.witnesses[idx], int(a))
     start = int((sol.alphas @ model.b0).argmax())
-    return Controller(sol.actions.astype(np.int64), nxt, start)
+    return Controller(sol.actions.astype(np.int64), nxt, start, sol.witnesses)
 
 
-def improve(model: POMDP, ctrl: Controller, beliefs: np.ndarray, max_rounds: int = 20):
-    """Re-point each edge to the node with the best exact value at its successor belief.
-
-    Repeated while the value at b0 rises; the best controller seen is kept.
-    Returns (controller, values, rounds).
-    """
-    V = evaluate(model, ctrl)
-    best = (float((V @ model.b0).max()), ctrl, V)
-    succ = [successor_beliefs(model, beliefs[n], int(ctrl.action[n]))[0] for n in range(ctrl.nodes)]
-    rounds = 0
-    for rounds in range(1, max_rounds + 1):
-        nxt = np.stack([(succ[n] @ V.T).argmax(axis=1) for n in range(ctrl.nodes)])
-        start = int((V @ model.b0).argmax())
-        cand = Controller(ctrl.action, nxt, start)
-        if np.array_equal(nxt, ctrl.next) and start == ctrl.start:
-            break
-        ctrl = cand
-        V = evaluate(model, ctrl)
-        value = float(V[ctrl.start] @ model.b0)
-        if value > best[0] + 1e-12 * max(1.0, abs(best[0])):
-            best = (value, ctrl, V)
-        else:
-            break
-    return best[1], best[2], rounds
+def repoint(model: POMDP, ctrl: Controller, V: np.ndarray) -> Controller:
+    """Every edge to the node with the best exact value at its node's successor belief."""
+    nxt = ctrl.next.copy()
+    for a in np.unique(ctrl.action):
+        idx = np.flatnonzero(ctrl.action == a)
+        _, nxt[idx] = lookahead(model, V, ctrl.beliefs[idx], int(a))
+    return replace(ctrl, next=nxt, start=int((V @ model.b0).argmax()))
 
 
 def reachable(ctrl: Controller) -> Controller:
     """Keep the nodes the start node can reach, renumbered in breadth-first order."""
     order = [ctrl.start]
-    index = {ctrl.start: 0}
+    seen = np.full(ctrl.nodes, -1, dtype=np.int64)
+    seen[ctrl.start] = 0
     i = 0
     while i < len(order):
-        for m in ctrl.next[order[i]]:
-            m = int(m)
-            if m not in index:
-                index[m] = len(order)
-                order.append(m)
+        for m in np.unique(ctrl.next[order[i]]):
+            if seen[m] < 0:
+                seen[m] = len(order)
+                order.append(int(m))
         i += 1
-    remap = np.vectorize(index.get, otypes=[np.int64])
-    return Controller(ctrl.action[order], remap(ctrl.next[order]), 0)
+    return ctrl.subset(np.array(order), seen, 0)
 
 
 def minimise(ctrl: Controller) -> Controller:
-    """Merge nodes that behave the same (Moore partition refinement); start stays node 0."""
-    block = ctrl.action.copy()
+    """Merge nodes that behave the same (Moore partition refinement); start becomes node 0."""
+    block = np.unique(ctrl.action, return_inverse=True)[1].ravel()
     while True:
         sig = np.column_stack([block, block[ctrl.next]])
-        _, new_block = np.unique(sig, axis=0, return_inverse=True)
-        new_block = new_block.ravel()
-        if len(np.unique(new_block)) == len(np.unique(block)):
+        new_block = np.unique(sig, axis=0, return_inverse=True)[1].ravel()
+        if new_block.max() == block.max():
             break
         block = new_block
-    # one representative per block, in order of first appearance
-    reps, first = np.unique(block, return_index=True)
-    order = np.sort(first)
-    block_to_new = {int(block[n]): i for i, n in enumerate(order)}
-    action = ctrl.action[order]
-    nxt = np.vectorize(lambda n: block_to_new[int(block[n])], otypes=[np.int64])(ctrl.next[order])
-    return reachable(Controller(action, nxt, block_to_new[int(block[ctrl.start])]))
+    _, first = np.unique(block, return_index=True)
+    order = np.sort(first)                       # one representative per block
+    block_to_new = np.empty(len(order), dtype=np.int64)
+    block_to_new[block[order]] = np.arange(len(order))
+    merged = ctrl.subset(order, block_to_new[block], int(block_to_new[block[ctrl.start]]))
+    return reachable(merged)
 
 
-def occupancy(model: POMDP, ctrl: Controller, iterations: int = 200) -> np.ndarray:
-    """Discounted expected visits of each node from (start, b0), by iterating x = e + g P^T x.
-
-    Used only to rank nodes, so a truncated iteration (error g^iterations) is enough.
-    """
-    S, _, Z = model.shape
-    N = ctrl.nodes
-    T_n = model.T[ctrl.action]
-    O_n = model.O[ctrl.action]                                  # (N, S, Z)
-    edges = sp.csr_matrix((np.ones(N * Z), (ctrl.next.ravel(), np.arange(N * Z))), shape=(N, N * Z))
-    e = np.zeros((N, S))
-    e[ctrl.start] = model.b0
-    x = e.copy()
-    for _ in range(iterations):
-        Y = np.matmul(x[:, None, :], T_n)[:, 0, :]                 # (N, S'): mass after moving
-        flows = (Y[:, :, None] * O_n).transpose(0, 2, 1).reshape(N * Z, S)
-        x = e + model.discount * (edges @ flows)
-    return x.sum(axis=1)
+def cut(model: POMDP, ctrl: Controller, V: np.ndarray, max_nodes: int) -> Controller:
+    """Keep the `max_nodes` most visited nodes; edges into dropped nodes are re-pointed to the
+    kept node with the best value at the successor belief."""
+    visits = occupancy(model, ctrl).sum(axis=1)
+    keep = np.unique(np.append(np.argsort(-visits, kind="stable")[: max_nodes - 1], ctrl.start))
+    remap = np.full(ctrl.nodes, -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    kept = Controller(ctrl.action[keep], ctrl.next[keep], int(remap[ctrl.start]), ctrl.beliefs[keep])
+    sub = repoint(model, kept, V[keep])
+    # edges that already led to a kept node stay as they were
+    stay = remap[kept.next] >= 0
+    return replace(sub, next=np.where(stay, remap[kept.next], sub.next), start=int(remap[ctrl.start]))
 
 
-def restrict(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndarray, keep: np.ndarray):
-    """Keep only the nodes in `keep` (and the start); edges into dropped nodes go to the kept
-    node with the best value at the successor belief. Returns (controller, kept node ids)."""
-    keep = np.unique(np.append(keep, ctrl.start))
-    new_index = {int(n): i for i, n in enumerate(keep)}
-    nxt = np.zeros((len(keep), model.shape[2]), dtype=np.int64)
-    for i, n in enumerate(keep):
-        succ, _ = successor_beliefs(model, beliefs[n], int(ctrl.action[n]))
-        best = keep[(succ @ V[keep].T).argmax(axis=1)]
-        row = np.where(np.isin(ctrl.next[n], keep), ctrl.next[n], best)
-        nxt[i] = [new_index[int(m)] for m in row]
-    return Controller(ctrl.action[keep], nxt, new_index[ctrl.start]), keep
+def grow(model: POMDP, ctrl: Controller, V: np.ndarray, points: np.ndarray) -> tuple[Controller, int]:
+    """Add a backed-up node at every point where a one-step lookahead on the exact values
+    beats every node (Hansen-style policy improvement, at points). Its successors are old
+    nodes, whose values do not change, so the value at that point rises."""
+    now = (points @ V.T).max(axis=1)
+    act, nxt, q = backup_nodes(model, V, points)
+    better = np.flatnonzero(q > now + 1e-9 * np.maximum(1.0, np.abs(now)))
+    if len(better) == 0:
+        return ctrl, 0
+    _, first = np.unique(np.column_stack([act[better], nxt[better]]), axis=0, return_index=True)
+    chosen = better[np.sort(first)]
+    grown = Controller(
+        np.concatenate([ctrl.action, act[chosen]]),
+        np.vstack([ctrl.next, nxt[chosen]]),
+        ctrl.start,
+        np.vstack([ctrl.beliefs, points[chosen]]),
+    )
+    return grown, len(chosen)
 
 
-def compile_controller(model: POMDP, sol: Solution, improve_rounds: int = 20, max_nodes: int = 255) -> Compiled:
-    """Witness-following controller, improved, cut to the `max_nodes` most visited nodes
-    (improved again), pruned, minimised and evaluated exactly."""
+def visited_beliefs(model: POMDP, ctrl: Controller) -> np.ndarray:
+    """The belief each node is really visited with: its normalised discounted occupancy."""
+    x = occupancy(model, ctrl)
+    mass = x.sum(axis=1)
+    used = mass > 1e-6
+    return x[used] / mass[used, None]
+
+
+def settle(model: POMDP, ctrl: Controller, max_nodes: int) -> tuple[Controller, np.ndarray]:
+    """Re-point, prune, cut to budget and minimise; returns the controller and its exact values."""
+    V = evaluate(model, ctrl)
+    ctrl = reachable(repoint(model, ctrl, V))
+    V = evaluate(model, ctrl)
+    if ctrl.nodes > max_nodes:
+        ctrl = reachable(cut(model, ctrl, V, max_nodes))
+        V = evaluate(model, ctrl)
+    ctrl = minimise(ctrl)
+    return ctrl, evaluate(model, ctrl)
+
+
+def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds: int = 12) -> Compiled:
+    """Witness-following controller, improved by point-based policy iteration within the
+    node budget; every round is kept only if the exact value at b0 rises."""
     naive = follow_witnesses(model, sol)
     naive_V = evaluate(model, naive)
-    naive_value = float(naive_V[naive.start] @ model.b0)
-    ctrl, V, rounds = improve(model, naive, sol.witnesses, improve_rounds)
-    beliefs = sol.witnesses
-    if reachable(ctrl).nodes > max_nodes:
-        visits = occupancy(model, ctrl)
-        keep = np.argsort(-visits, kind="stable")[: max_nodes - 1]
-        ctrl, kept = restrict(model, ctrl, V, beliefs, keep)
-        ctrl, V, more = improve(model, ctrl, beliefs[kept], improve_rounds)
-        rounds += more
-    ctrl = minimise(reachable(ctrl))
-    V = evaluate(model, ctrl)
-    return Compiled(ctrl, V, float(V[ctrl.start] @ model.b0), naive_value, rounds)
+    best = (value_at(model, naive, naive_V), naive, naive_V)
+    ctrl, V = settle(model, naive, max_nodes)
+    if value_at(model, ctrl, V) > best[0]:
+        best = (value_at(model, ctrl, V), ctrl, V)
+    done = 0
+    for done in range(1, rounds + 1):
+        ctrl, V = best[1], best[2]
+        points = np.vstack([model.b0[None, :], sol.beliefs, visited_beliefs(model, ctrl)])
+        grown, added = grow(model, ctrl, V, points)
+        if not added:
+            break
+        cand, cand_V = settle(model, grown, max_nodes)
+        value = value_at(model, cand, cand_V)
+        if value <= best[0] + 1e-9 * max(1.0, abs(best[0])):
+            break
+        best = (value, cand, cand_V)
+    value, ctrl, V = best
+    if ctrl.nodes > max_nodes or ctrl.start != 0:
+        ctrl, V = settle(model, ctrl, max_nodes)
+        value = value_at(model, ctrl, V)
+    return Compiled(replace(ctrl, beliefs=None), V, value, value_at(model, naive, naive_V), done)

@@ -36,22 +36,23 @@ MODELS = {
         "seed 000: 4-state anti-collision POMDP (zones)",
         model1.Model1Params(),
         model1.build,
-        Plan(SolverSettings(max_beliefs=200, max_iterations=400, expand_every=10), max_nodes=16),
+        Plan(SolverSettings(max_beliefs=200, max_iterations=400, expand_every=10), max_nodes=8),
     ),
     "m2": ModelSpec(
         "seed 001: 144-state anti-collision POMDP (distance, speed, type, track, brake)",
         model2.Model2Params(),
         model2.build,
-        Plan(SolverSettings(max_beliefs=400, max_iterations=60, expand_every=5, time_budget_s=40.0), max_nodes=255),
+        Plan(SolverSettings(max_beliefs=500, max_iterations=100, expand_every=5, time_budget_s=300.0), max_nodes=255),
     ),
 }
 
 
 def plan_from(config: dict, plan: Plan) -> Plan:
     """Apply a `[solver]` table to a plan (unknown keys refused)."""
-    solver = dict(config.get("solver", {}))
+    solver = config.get("solver", {})
     if not isinstance(solver, dict):
         raise ConfigError("[solver] must be a table")
+    solver = dict(solver)
     max_nodes = solver.pop("max_nodes", plan.max_nodes)
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, int) or not 1 <= max_nodes <= 65535:
         raise ConfigError(f"max_nodes must be a whole number in 1..65535, got {max_nodes!r}")
@@ -69,7 +70,25 @@ def load(name: str, config_path: Optional[str | Path] = None) -> tuple[POMDP, Pl
         p = override(spec.params, params)
     except ConfigError as exc:
         raise ConfigError(f"{config_path}: {exc}") from None
-    return spec.build(p), plan_from(config, spec.plan)
+    try:
+        plan = plan_from(config, spec.plan)
+    except ConfigError as exc:
+        raise ConfigError(f"{config_path}: {exc}") from None
+    return spec.build(p), plan
+
+
+def plan_for_pomdp_file(config_path: Optional[str | Path]) -> Plan:
+    """Settings for a model read from a .pomdp file: only a [solver] table is allowed."""
+    if not config_path:
+        return default_plan()
+    config = read_toml(config_path)
+    extra = [k for k in config if k != "solver"]
+    if extra:
+        raise ConfigError(f"{config_path}: a .pomdp model takes only a [solver] table, not {', '.join(map(repr, extra))}")
+    try:
+        return plan_from(config, default_plan())
+    except ConfigError as exc:
+        raise ConfigError(f"{config_path}: {exc}") from None
 
 
 def default_plan() -> Plan:
@@ -77,4 +96,4 @@ def default_plan() -> Plan:
     return Plan(SolverSettings(), max_nodes=255)
 
 
-__all__ = ["MODELS", "Plan", "load", "plan_from", "default_plan"]
+__all__ = ["MODELS", "Plan", "load", "plan_from", "plan_for_pomdp_file", "default_plan"]

@@ -1,0 +1,522 @@
+"""Physical sense of the derived models (monitor/offline/models, pomdp.py, params.py, risk.py)."""
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from monitor.offline.models import load, model1, model2
+from monitor.offline.params import ConfigError
+from monitor.offline.pomdp import POMDP, ModelError
+from monitor.offline.risk import r1_logistic, r2_linear, risk_category, risk_score
+
+TOL = 1e-12
+
+
+# ------------------------------------------------------------------ POMDP validation
+
+
+def small_model(**changes) -> POMDP:
+    """Two states, two actions, two observations; distinct names so messages can be checked."""
+    args = dict(
+        name="toy",
+        states=("s-alpha", "s-beta"),
+        actions=("act-x", "act-y"),
+        observations=("obs-p", "obs-q"),
+        T=np.array([[[0.9, 0.1], [0.2, 0.8]], [[0.5, 0.5], [0.3, 0.7]]]),
+        O=np.array([[[0.6, 0.4], [0.1, 0.9]], [[0.5, 0.5], [0.25, 0.75]]]),
+        R=np.array([[1.0, -1.0], [0.0, 2.0]]),
+        discount=0.9,
+        b0=np.array([0.5, 0.5]),
+    )
+    args.update(changes)
+    return POMDP(**args)
+
+
+def test_valid_small_model_is_accepted_and_read_only():
+    m = small_model()
+    assert m.shape == (2, 2, 2)
+    with pytest.raises(ValueError):
+        m.T[0, 0, 0] = 0.5  # arrays are frozen
+
+
+def test_transition_row_not_summing_to_one_names_action_and_state():
+    T = np.array([[[0.9, 0.1], [0.2, 0.8]], [[0.5, 0.5], [0.3, 0.6]]])  # act-y, s-beta sums to 0.9
+    with pytest.raises(ModelError) as info:
+        small_model(T=T)
+    msg = str(info.value)
+    assert "act-y" in msg and "s-beta" in msg
+    assert "act-x" not in msg and "s-alpha" not in msg
+    assert "T[" in msg
+
+
+def test_observation_row_not_summing_to_one_names_action_and_state():
+    O = np.array([[[0.6, 0.4], [0.1, 0.95]], [[0.5, 0.5], [0.25, 0.75]]])  # act-x, s-beta
+    with pytest.raises(ModelError) as info:
+        small_model(O=O)
+    msg = str(info.value)
+    assert "act-x" in msg and "s-beta" in msg and "O[" in msg
+    assert "act-y" not in msg
+
+
+def test_negative_probability_is_refused_even_if_row_sums_to_one():
+    T = np.array([[[1.5, -0.5], [0.2, 0.8]], [[0.5, 0.5], [0.3, 0.7]]])
+    with pytest.raises(ModelError, match="negative"):
+        small_model(T=T)
+
+
+@pytest.mark.parametrize("field", ["T", "O", "R", "b0"])
+def test_nan_is_refused(field):
+    arr = np.array(getattr(small_model(), field), dtype=float)
+    arr.flat[0] = np.nan
+    with pytest.raises(ModelError, match=field):
+        small_model(**{field: arr})
+
+
+def test_infinite_reward_is_refused():
+    with pytest.raises(ModelError):
+        small_model(R=np.array([[np.inf, 0.0], [0.0, 0.0]]))
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("T", np.full((2, 2, 3), 1.0 / 3)),
+        ("T", np.full((2, 2), 0.5)),
+        ("O", np.full((2, 3, 2), 0.5)),
+        ("R", np.zeros((2, 3))),
+        ("R", np.zeros((3, 2))),
+        ("b0", np.array([1.0, 0.0, 0.0])),
+    ],
+)
+def test_wrong_shape_is_refused(field, value):
+    with pytest.raises(ModelError, match="shape"):
+        small_model(**{field: value})
+
+
+@pytest.mark.parametrize("discount", [1.0, 1.5, -0.1, float("nan")])
+def test_discount_outside_unit_interval_is_refused(discount):
+    with pytest.raises(ModelError):
+        small_model(discount=discount)
+
+
+def test_start_belief_must_sum_to_one_and_names_must_be_unique():
+    with pytest.raises(ModelError):
+        small_model(b0=np.array([0.6, 0.6]))
+    with pytest.raises(ModelError, match="duplicate"):
+        small_model(states=("same", "same"))
+
+
+# ------------------------------------------------------------------ Model 1
+
+SAFE, OD, ATC, CRASH = range(4)
+MAINTAIN, NOMINAL, EMERGENCY = range(3)
+
+
+def m1_build(**changes) -> POMDP:
+    return model1.build(replace(model1.Model1Params(), **changes))
+
+
+def at_least_as_close(T_row: np.ndarray) -> np.ndarray:
+    """[P(s' >= k) for k = 1, 2, 3]: probability of ending in a zone at least as close as k."""
+    return np.array([T_row[k:].sum() for k in (1, 2, 3)])
+
+
+def test_model1_names_and_shape():
+    m = m1_build()
+    assert m.states == ("Safe", "ObstacleDetected", "AboutToCrash", "Crash")
+    assert m.actions == ("maintain", "nominal_braking", "emergency_braking")
+    assert m.shape == (4, 3, 4)
+    assert m.discount == 0.95
+    assert np.array_equal(m.b0, [1.0, 0.0, 0.0, 0.0])
+
+
+def test_model1_rows_are_stochastic():
+    m = m1_build()
+    assert np.all(m.T >= 0) and np.all(m.O >= 0)
+    assert np.allclose(m.T.sum(axis=2), 1.0, atol=1e-12, rtol=0)
+    assert np.allclose(m.O.sum(axis=2), 1.0, atol=1e-12, rtol=0)
+
+
+@pytest.mark.parametrize("speed", [40.0, 25.0])
+def test_model1_braking_never_makes_closer_zones_more_likely(speed):
+    """First-order stochastic dominance: emergency <= nominal <= maintain for P(s' >= k)."""
+    T = m1_build(speed_mps=speed).T
+    for s in range(4):
+        emer, nom, keep = (at_least_as_close(T[a, s]) for a in (EMERGENCY, NOMINAL, MAINTAIN))
+        assert np.all(emer <= nom + TOL), (s, emer, nom)
+        assert np.all(nom <= keep + TOL), (s, nom, keep)
+
+
+def test_model1_braking_lowers_probability_of_getting_closer():
+    T = m1_build().T
+    for s in range(4):
+        closer = [T[a, s, s + 1:].sum() for a in range(3)]
+        assert closer[EMERGENCY] <= closer[NOMINAL] + TOL <= closer[MAINTAIN] + 2 * TOL, (s, closer)
+    # where an obstacle is ahead and can still come closer, emergency braking strictly helps
+    for s in (OD, ATC):
+        assert T[EMERGENCY, s, s + 1:].sum() < T[MAINTAIN, s, s + 1:].sum()
+    # and maintaining speed really closes in on an obstacle in the emergency zone
+    assert T[MAINTAIN, ATC, CRASH] > 0
+
+
+def test_model1_obstacle_clears_and_appears_independently_of_action():
+    T = m1_build().T
+    for a in range(3):
+        assert np.allclose(T[a, SAFE], T[0, SAFE], atol=TOL)  # appearance does not depend on braking
+        assert np.isclose(T[a, CRASH, SAFE], T[0, CRASH, SAFE], atol=TOL)
+
+
+@pytest.mark.parametrize("f", [0.05, 0.2, 0.5, 0.75])
+def test_model1_appearance_rate_matches_obstacle_fraction(f):
+    m = m1_build(obstacle_fraction=f)
+    p_clear = m.T[MAINTAIN, CRASH, SAFE]        # a collision only ends by clearing
+    p_appear = 1.0 - m.T[MAINTAIN, SAFE, SAFE]  # all appearances land within the warning distance
+    assert p_clear > 0
+    assert p_appear / p_clear == pytest.approx(f / (1.0 - f), rel=1e-9)
+
+
+@pytest.mark.parametrize("f", [0.2, 0.5])
+def test_model1_stationary_obstacle_fraction_under_maintain(f):
+    """Under 'maintain' an obstacle never moves beyond d_w, so it leaves only by clearing:
+    the long-run fraction of time with an obstacle must be exactly obstacle_fraction."""
+    T = m1_build(obstacle_fraction=f).T[MAINTAIN]
+    w, v = np.linalg.eig(T.T)
+    pi = np.real(v[:, np.argmin(np.abs(w - 1.0))])
+    pi = pi / pi.sum()
+    assert 1.0 - pi[SAFE] == pytest.approx(f, rel=1e-9)
+
+
+def test_model1_zero_noise_gives_identity_observations():
+    m = m1_build(noise_sigma_m=0.0, false_positive=0.0, missed_detection=0.0)
+    for a in range(3):
+        assert np.allclose(m.O[a], np.eye(4), atol=1e-12)
+
+
+def test_model1_observation_diagonal_is_the_most_likely_reading():
+    O = m1_build().O
+    for a in range(3):
+        for s in range(4):
+            assert O[a, s].argmax() == s
+
+
+@pytest.mark.parametrize(
+    "changes, strictly_lower",
+    [
+        (dict(noise_sigma_m=30.0), (OD, ATC, CRASH)),
+        (dict(false_positive=0.1), (SAFE,)),
+        (dict(missed_detection=0.1), (OD, ATC, CRASH)),
+    ],
+)
+def test_model1_more_noise_lowers_the_diagonal(changes, strictly_lower):
+    base = np.diagonal(m1_build().O[0])
+    noisy = np.diagonal(m1_build(**changes).O[0])
+    assert np.all(noisy <= base + 1e-12), (base, noisy)
+    for s in strictly_lower:
+        assert noisy[s] < base[s] - 1e-6, (s, base, noisy)
+
+
+def test_model1_crash_energy_weighting():
+    p = model1.Model1Params()
+    costs = np.array(p.braking_costs)
+    on = m1_build(crash_energy_weighting=True).R
+    off = m1_build(crash_energy_weighting=False).R
+    crash_on = on[CRASH] + costs   # the Crash penalty itself, braking cost removed
+    crash_off = off[CRASH] + costs
+    # braking lowers the impact speed, so the crash is less bad, the harder the braking the better
+    assert crash_on[EMERGENCY] > crash_on[NOMINAL] > crash_on[MAINTAIN]
+    assert crash_on[MAINTAIN] == pytest.approx(p.rewards[CRASH])
+    # v^2 - 2 b d averaged over d uniform in [0, alpha2] (no stop before impact at these values)
+    v2 = p.speed_mps ** 2
+    for a, b in enumerate(p.decelerations_mps2):
+        assert crash_on[a] == pytest.approx(p.rewards[CRASH] * (1.0 - b * p.alpha2_m / v2), rel=1e-9)
+    assert np.allclose(crash_off, p.rewards[CRASH])
+    assert np.array_equal(on[:CRASH], off[:CRASH])  # other states are unaffected
+    zero_cost = m1_build(crash_energy_weighting=False, braking_costs=(0.0, 0.0, 0.0)).R
+    assert zero_cost[CRASH, EMERGENCY] == zero_cost[CRASH, MAINTAIN] == zero_cost[CRASH, NOMINAL]
+
+
+def test_model1_rewards_rank_zones_and_charge_braking():
+    R = m1_build().R
+    for a in range(3):
+        assert R[SAFE, a] > R[OD, a] > R[ATC, a] > R[CRASH, a]
+    for s in (SAFE, OD, ATC):
+        assert R[s, MAINTAIN] > R[s, NOMINAL] > R[s, EMERGENCY]
+
+
+# ------------------------------------------------------------------ parameter overrides
+
+
+def write_toml(tmp_path, text: str):
+    path = tmp_path / "cfg.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_toml_override_changes_params_and_transitions(tmp_path, m1):
+    default_model, _ = m1
+    model, plan = load("m1", write_toml(tmp_path, "alpha1_m = 400.0\n"))
+    assert model.params["alpha1_m"] == 400.0
+    assert default_model.params["alpha1_m"] == 300.0
+    assert model.params["alpha2_m"] == default_model.params["alpha2_m"]
+    assert not np.allclose(model.T, default_model.T)
+    # a larger alpha1 makes the emergency zone longer: leaving it downwards is slower
+    assert model.T[MAINTAIN, ATC, CRASH] < default_model.T[MAINTAIN, ATC, CRASH]
+
+
+def test_toml_integer_value_for_float_parameter_is_accepted(tmp_path):
+    model, _ = load("m1", write_toml(tmp_path, "alpha1_m = 400\n"))
+    assert model.params["alpha1_m"] == 400.0 and isinstance(model.params["alpha1_m"], float)
+
+
+def test_toml_solver_table_sets_plan(tmp_path):
+    _, plan = load("m1", write_toml(tmp_path, "[solver]\nmax_iterations = 7\nseed = 3\nmax_nodes = 9\n"))
+    assert plan.settings.max_iterations == 7 and plan.settings.seed == 3 and plan.max_nodes == 9
+
+
+def test_toml_unknown_key_names_the_key(tmp_path):
+    with pytest.raises(ConfigError, match="alpha3_m"):
+        load("m1", write_toml(tmp_path, "alpha3_m = 1.0\n"))
+
+
+def test_toml_unknown_solver_key_names_the_key(tmp_path):
+    with pytest.raises(ConfigError, match="max_iteration"):
+        load("m1", write_toml(tmp_path, "[solver]\nmax_iteration = 3\n"))
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ('alpha1_m = "far"\n', "alpha1_m"),
+        ("crash_energy_weighting = 1\n", "crash_energy_weighting"),
+        ("alpha1_m = true\n", "alpha1_m"),
+        ("rewards = [1.0, 2.0]\n", "rewards"),
+    ],
+)
+def test_toml_wrong_type_is_refused(tmp_path, text, key):
+    with pytest.raises(ConfigError, match=key):
+        load("m1", write_toml(tmp_path, text))
+
+
+@pytest.mark.parametrize("alpha2", [300.0, 350.0])
+def test_alpha2_not_below_alpha1_is_a_model_error(tmp_path, alpha2):
+    with pytest.raises(ModelError, match="alpha2_m"):
+        load("m1", write_toml(tmp_path, f"alpha2_m = {alpha2}\n"))
+
+
+def test_malformed_toml_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="malformed"):
+        load("m1", write_toml(tmp_path, "alpha1_m = = 3\n"))
+
+
+def test_missing_config_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError):
+        load("m1", tmp_path / "nope.toml")
+
+
+# ------------------------------------------------------------------ Model 2
+
+DIST, SPEED, OBST, TRACK, BRAKE = range(5)
+
+
+def m2_build(**changes) -> POMDP:
+    return model2.build(replace(model2.Model2Params(), **changes))
+
+
+def distance_marginal(T_row: np.ndarray) -> np.ndarray:
+    """P(next distance level) from a row over the 144 states."""
+    return T_row.reshape(model2.DIMS).sum(axis=(1, 2, 3, 4))
+
+
+def test_model2_has_144_unique_states(m2):
+    model, _ = m2
+    assert model.shape == (144, 3, 144)
+    assert len(set(model.states)) == 144
+    assert model.observations == model.states
+    assert model.actions == ("maintain", "nominal_braking", "emergency_braking")
+    # the state index order is the component order (last component fastest)
+    tuples = model2.state_tuples()
+    assert len(tuples) == 144 and len(set(tuples)) == 144
+    assert model.states[0] == model2.state_name(tuples[0])
+    assert all(model.states[i] == model2.state_name(t) for i, t in enumerate(tuples))
+
+
+def test_model2_rows_are_stochastic(m2):
+    model, _ = m2
+    assert np.all(model.T >= 0) and np.all(model.O >= 0)
+    assert np.allclose(model.T.sum(axis=2), 1.0, atol=1e-12, rtol=0)
+    assert np.allclose(model.O.sum(axis=2), 1.0, atol=1e-12, rtol=0)
+    assert np.isclose(model.b0.sum(), 1.0)
+
+
+def test_model2_observation_is_product_of_component_confusions(m2):
+    """Eq. 9 per component, components independent: P(o | s) = prod_i c_i(o_i | s_i)."""
+    model, _ = m2
+    eps = model2.Model2Params().misperception
+    tuples = model2.state_tuples()
+    expected = np.ones((144, 144))
+    for i, s in enumerate(tuples):
+        for j, o in enumerate(tuples):
+            for c, (si, oi) in enumerate(zip(s, o)):
+                expected[i, j] *= (1.0 - eps[c]) if si == oi else eps[c] / (model2.DIMS[c] - 1)
+    for a in range(3):
+        assert np.allclose(model.O[a], expected, atol=1e-15, rtol=1e-12)
+    assert np.allclose(np.diagonal(model.O[0]), np.prod([1.0 - e for e in eps]))
+
+
+def test_model2_zero_misperception_gives_identity():
+    m = m2_build(misperception=(0.0, 0.0, 0.0, 0.0, 0.0))
+    for a in range(3):
+        assert np.array_equal(m.O[a], np.eye(144))
+
+
+def test_model2_more_misperception_lowers_the_diagonal():
+    base = np.diagonal(m2_build().O[0])
+    more = np.diagonal(m2_build(misperception=(0.1, 0.05, 0.05, 0.02, 0.01)).O[0])
+    assert np.all(more < base)
+
+
+def test_model2_braking_never_makes_a_closer_distance_more_likely(m2):
+    model, _ = m2
+    T = model.T
+    strict = 0
+    for i, s in enumerate(model2.state_tuples()):
+        d = s[DIST]
+        marg = [distance_marginal(T[a, i]) for a in range(3)]
+        closer = [m[d + 1:].sum() for m in marg]
+        assert closer[EMERGENCY] <= closer[NOMINAL] + TOL, (model.states[i], closer)
+        assert closer[NOMINAL] <= closer[MAINTAIN] + TOL, (model.states[i], closer)
+        for k in range(1, 4):  # stochastic dominance over the distance level
+            assert marg[EMERGENCY][k:].sum() <= marg[NOMINAL][k:].sum() + TOL
+            assert marg[NOMINAL][k:].sum() <= marg[MAINTAIN][k:].sum() + TOL
+        strict += closer[EMERGENCY] < closer[MAINTAIN] - 1e-9
+    assert strict > 0
+
+
+def closer_under(model: POMDP, a: int, levels: tuple) -> float:
+    i = model2.state_tuples().index(levels)
+    d = levels[DIST]
+    return float(distance_marginal(model.T[a, i])[d + 1:].sum())
+
+
+@pytest.mark.parametrize("component", [TRACK, BRAKE])
+def test_model2_slippery_track_or_degraded_brakes_weaken_braking(m2, component):
+    model, _ = m2
+    strict = 0
+    for s in model2.state_tuples():
+        if s[component] != 0:
+            continue
+        bad = tuple(1 if c == component else x for c, x in enumerate(s))
+        for a in (NOMINAL, EMERGENCY):
+            good_p, bad_p = closer_under(model, a, s), closer_under(model, a, bad)
+            assert bad_p >= good_p - TOL, (s, a, good_p, bad_p)
+            strict += bad_p > good_p + 1e-9
+        # without braking the track and the brakes make no difference to the distance
+        assert closer_under(model, MAINTAIN, bad) == pytest.approx(closer_under(model, MAINTAIN, s), abs=TOL)
+    assert strict > 0
+    # a fast obstacle in the close zone: emergency braking on good rails and brakes is the best case
+    s = (2, 2, 0, 0, 0)
+    bad = tuple(1 if c == component else x for c, x in enumerate(s))
+    assert closer_under(model, EMERGENCY, bad) > closer_under(model, EMERGENCY, s)
+
+
+def paper_reward(cat: int, a: int) -> float:
+    """Eq. 10 of seed 001 as printed."""
+    if cat == 1:
+        return 0.0
+    if cat == 2:
+        return -5.0 if a != EMERGENCY else 0.0
+    if cat == 3:
+        return -20.0 if a != NOMINAL else 0.0
+    return -100.0 if a != EMERGENCY else 0.0
+
+
+def test_model2_paper_reward_follows_eq10_as_printed():
+    m = m2_build(reward="paper")
+    cats = set()
+    for i, s in enumerate(model2.state_tuples()):
+        cat = risk_category(risk_score(*s))
+        cats.add(cat)
+        for a in range(3):
+            assert m.R[i, a] == paper_reward(cat, a), (m.states[i], cat, a, m.R[i, a])
+    assert cats == {1, 2, 3, 4}
+
+
+def test_model2_corrected_reward_answers_risk_with_braking(m2):
+    model, _ = m2
+    assert model.params["reward"] == "corrected"
+    seen = set()
+    for i, s in enumerate(model2.state_tuples()):
+        cat = risk_category(risk_score(*s))
+        R = model.R[i]
+        if cat == 4:
+            assert R[MAINTAIN] < R[EMERGENCY], model.states[i]
+            assert R[MAINTAIN] < R[NOMINAL] < R[EMERGENCY] + TOL, model.states[i]
+        if cat == 1:
+            assert R[EMERGENCY] < R[MAINTAIN], model.states[i]
+            assert R[MAINTAIN] == R.max(), model.states[i]
+        seen.add(cat)
+    assert {1, 4} <= seen
+    # at every level, the best response penalises less than doing nothing at critical risk
+    by_cat = {c: model.R[[risk_category(risk_score(*s)) == c for s in model2.state_tuples()]] for c in seen}
+    worst_maintain = [by_cat[c][:, MAINTAIN].min() for c in sorted(seen)]
+    assert worst_maintain == sorted(worst_maintain, reverse=True)
+
+
+def test_model2_unknown_reward_variant_is_a_model_error(tmp_path):
+    with pytest.raises(ModelError, match="bogus"):
+        m2_build(reward="bogus")
+    with pytest.raises(ModelError, match="bogus"):
+        load("m2", write_toml(tmp_path, 'reward = "bogus"\n'))
+
+
+def test_model2_start_belief_is_far_normal_track_normal_brakes(m2):
+    model, _ = m2
+    for i, s in enumerate(model2.state_tuples()):
+        if model.b0[i] > 0:
+            assert s[DIST] == 0 and s[TRACK] == 0 and s[BRAKE] == 0
+
+
+# ------------------------------------------------------------------ risk functions
+
+
+def test_risk_score_weights():
+    assert risk_score(0, 0, 0, 0, 0) == 0
+    units = [tuple(1 if i == j else 0 for i in range(5)) for j in range(5)]
+    assert [risk_score(*u) for u in units] == [3, 2, 2, 1, 2]
+    assert risk_score(3, 2, 2, 1, 1) == 3 * 3 + 2 * 2 + 2 * 2 + 1 + 2
+    for s in itertools.product(range(4), range(3), range(3), range(2), range(2)):
+        assert risk_score(*s) == 3 * s[0] + 2 * s[1] + 2 * s[2] + s[3] + 2 * s[4]
+
+
+@pytest.mark.parametrize(
+    "score, cat",
+    [(0, 1), (7, 1), (8, 2), (11, 2), (12, 3), (15, 3), (16, 4), (20, 4)],
+)
+def test_risk_category_boundaries(score, cat):
+    assert risk_category(score) == cat
+
+
+def test_r2_linear_is_clipped_to_unit_interval():
+    a1, a2 = 300.0, 100.0
+    assert r2_linear(a1, a1, a2) == 0.0
+    assert r2_linear(a2, a1, a2) == 1.0
+    assert r2_linear(200.0, a1, a2) == pytest.approx(0.5)
+    assert r2_linear(1000.0, a1, a2) == 0.0
+    assert r2_linear(0.0, a1, a2) == 1.0
+    assert r2_linear(-50.0, a1, a2) == 1.0
+    values = [r2_linear(d, a1, a2) for d in np.linspace(-100, 1000, 221)]
+    assert all(0.0 <= v <= 1.0 for v in values)
+    assert all(x >= y for x, y in zip(values, values[1:]))
+
+
+def test_r1_logistic_decreases_with_distance():
+    a1 = 300.0
+    d = np.linspace(0.0, 1000.0, 201)
+    r = np.array([r1_logistic(x, a1) for x in d])
+    assert np.all(np.diff(r) < 0)
+    assert np.all((r > 0) & (r <= 0.5 + 1e-15))
+    assert r1_logistic(0.0, a1) == pytest.approx(0.5)
+    assert r1_logistic(a1, a1) == pytest.approx(1.0 - 1.0 / (1.0 + np.exp(-5.0)))

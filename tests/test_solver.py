@@ -1,0 +1,285 @@
+"""PBVI, the fast informed bound, controller compilation and exact evaluation."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from conftest import independent_values
+from monitor.core import table as table_format
+from monitor.offline import pipeline
+from monitor.offline.controller import Controller, compile_controller, evaluate, minimise, reachable
+from monitor.offline.models import Plan
+from monitor.offline.solver import SolverSettings, fast_informed_bound, solve
+
+TIGER_VALUE = 19.37  # optimal discounted value of Tiger at the uniform belief (g = 0.95)
+
+
+def value_at_start(model, ctrl: Controller) -> float:
+    return float(evaluate(model, ctrl)[ctrl.start] @ model.b0)
+
+
+def mdp_q(model, tol: float = 1e-10) -> np.ndarray:
+    """Q of the fully observable MDP (value iteration, written independently)."""
+    S, A, _ = model.shape
+    Q = np.zeros((A, S))
+    for _ in range(100000):
+        V = Q.max(axis=0)
+        Qn = model.R.T + model.discount * np.einsum("ast,t->as", model.T, V)
+        if np.abs(Qn - Q).max() < tol:
+            return Qn
+        Q = Qn
+    raise AssertionError("MDP value iteration did not converge")
+
+
+def simulate(model, ctrl: Controller, episodes: int, horizon: int, seed: int) -> np.ndarray:
+    """Discounted returns of the closed loop, sampled with numpy (vectorised over episodes)."""
+    rng = np.random.default_rng(seed)
+    S, _, Z = model.shape
+    cumT = np.cumsum(model.T, axis=2)
+    cumO = np.cumsum(model.O, axis=2)
+    s = np.minimum(np.searchsorted(np.cumsum(model.b0), rng.random(episodes), side="right"), S - 1)
+    n = np.full(episodes, ctrl.start)
+    ret = np.zeros(episodes)
+    disc = 1.0
+    for _ in range(horizon):
+        a = ctrl.action[n]
+        ret += disc * model.R[s, a]
+        disc *= model.discount
+        s = np.minimum((rng.random(episodes)[:, None] > cumT[a, s]).sum(axis=1), S - 1)
+        o = np.minimum((rng.random(episodes)[:, None] > cumO[a, s]).sum(axis=1), Z - 1)
+        n = ctrl.next[n, o]
+    return ret
+
+
+# ------------------------------------------------------------------ Tiger
+
+
+def test_tiger_controller_reaches_the_known_optimum(tiger, tiger_solved):
+    sol, comp = tiger_solved
+    assert comp.value == pytest.approx(TIGER_VALUE, abs=0.01)
+    assert sol.lower_bound <= sol.upper_bound
+    assert comp.value <= sol.upper_bound + 1e-9
+    # the lower bound is the value of the alpha vectors at b0: a valid bound on the optimum
+    assert sol.lower_bound <= TIGER_VALUE + 0.01
+    assert sol.lower_bound == pytest.approx(float((sol.alphas @ tiger.b0).max()))
+    # the number reported is the exact value of the shipped controller
+    assert comp.value == pytest.approx(value_at_start(tiger, comp.controller), abs=1e-9)
+    assert comp.controller.start == 0
+
+
+def test_tiger_controller_listens_before_opening(tiger, tiger_solved):
+    _, comp = tiger_solved
+    ctrl = comp.controller
+    listen = tiger.actions.index("listen")
+    assert ctrl.action[ctrl.start] == listen
+    # after one 'tiger-left' and one 'tiger-right' the belief is back at uniform: never open then
+    left, right = tiger.observations.index("tiger-left"), tiger.observations.index("tiger-right")
+    n = ctrl.next[ctrl.next[ctrl.start, left], right]
+    assert ctrl.action[n] == listen
+
+
+def test_fast_informed_bound_is_an_upper_bound(tiger, tiger_solved):
+    sol, comp = tiger_solved
+    Q = fast_informed_bound(tiger)
+    assert np.allclose(Q, sol.upper_q)
+    assert float((Q @ tiger.b0).max()) >= comp.value
+    assert sol.upper_bound == pytest.approx(float((Q @ tiger.b0).max()))
+    # V*(e_s) <= max_a Q(a, s), and every controller node is <= V*
+    assert np.all(comp.values <= Q.max(axis=0)[None, :] + 1e-9)
+
+
+@pytest.mark.parametrize("name", ["tiger", "m1"])
+def test_fast_informed_bound_lies_between_controller_and_mdp(request, name):
+    """FIB is never looser than the MDP bound (QMDP) and never below a real policy's value."""
+    model = request.getfixturevalue("tiger") if name == "tiger" else request.getfixturevalue("m1")[0]
+    Q = fast_informed_bound(model)
+    assert np.all(Q <= mdp_q(model) + 1e-6)
+    # Q is a fixed point of the FIB backup
+    S, A, Z = model.shape
+    inner = np.einsum("ast,ato,bt->asob", model.T, model.O, Q)
+    assert np.allclose(model.R.T + model.discount * inner.max(axis=3).sum(axis=2), Q, atol=1e-5)
+
+
+def test_tiger_fast_informed_bound_below_mdp_strictly(tiger):
+    """Opening a door is uninformative; FIB must use that, QMDP cannot (200 at every state)."""
+    Q = fast_informed_bound(tiger)
+    assert np.allclose(mdp_q(tiger).max(axis=0), 10.0 / (1 - 0.95))
+    assert float((Q @ tiger.b0).max()) < 150.0
+
+
+# ------------------------------------------------------------------ exact evaluation
+
+
+@pytest.mark.parametrize("name", ["tiger", "m1"])
+def test_exact_evaluation_matches_an_independent_dense_solve(request, name, tiger_solved, m1_result):
+    if name == "tiger":
+        model, ctrl = request.getfixturevalue("tiger"), tiger_solved[1].controller
+    else:
+        model, ctrl = m1_result.model, m1_result.compiled.controller
+    V = evaluate(model, ctrl)
+    assert np.allclose(V, independent_values(model, ctrl.action, ctrl.next), atol=1e-8, rtol=1e-10)
+
+
+def test_exact_evaluation_of_a_large_controller_uses_a_converged_solution(m2):
+    """Model 2 with 50 nodes (7200 pairs) takes the iterative path: check the Bellman residual
+    with an independently written operator, and the value bounds it implies."""
+    model, _ = m2
+    S, A, Z = model.shape
+    rng = np.random.default_rng(5)
+    N = 50
+    ctrl = Controller(rng.integers(0, A, N), rng.integers(0, N, (N, Z)), 0)
+    V = evaluate(model, ctrl)
+    assert V.shape == (N, S)
+    # (B V)[n, s] = R[s, a_n] + g * sum_s' T[a_n, s, s'] sum_o O[a_n, s', o] V[next[n, o], s']
+    W = np.stack([(model.O[ctrl.action[n]] * V[ctrl.next[n]].T).sum(axis=1) for n in range(N)])  # (N, S')
+    BV = model.R[:, ctrl.action].T + model.discount * np.einsum("nst,nt->ns", model.T[ctrl.action], W)
+    assert np.abs(BV - V).max() <= 1e-6 * max(1.0, np.abs(model.R).max())
+    lo, hi = model.R.min() / (1 - model.discount), model.R.max() / (1 - model.discount)
+    assert np.all(V >= lo - 1e-9) and np.all(V <= hi + 1e-9)
+
+
+def test_exact_value_agrees_with_monte_carlo_model1(m1_result):
+    model, comp = m1_result.model, m1_result.compiled
+    episodes, horizon = 50000, 250
+    # truncation bias is at most g^H max|R| / (1 - g): keep it far below the sampling error
+    bias = model.discount ** horizon * np.abs(model.R).max() / (1 - model.discount)
+    ret = simulate(model, comp.controller, episodes, horizon, seed=20240611)
+    se = ret.std(ddof=1) / np.sqrt(episodes)
+    assert bias < 0.05 * se
+    assert se < 0.05 * abs(comp.value)  # the test has teeth: 3 SE is < 15 % of the value
+    assert abs(ret.mean() - comp.value) <= 3 * se, (ret.mean(), comp.value, se)
+
+
+def test_exact_value_agrees_with_monte_carlo_tiger(tiger, tiger_solved):
+    comp = tiger_solved[1]
+    episodes, horizon = 20000, 400
+    bias = tiger.discount ** horizon * np.abs(tiger.R).max() / (1 - tiger.discount)
+    ret = simulate(tiger, comp.controller, episodes, horizon, seed=7)
+    se = ret.std(ddof=1) / np.sqrt(episodes)
+    assert bias < 0.05 * se
+    assert se < 0.05 * abs(comp.value)
+    assert abs(ret.mean() - comp.value) <= 3 * se, (ret.mean(), comp.value, se)
+
+
+# ------------------------------------------------------------------ reachable / minimise
+
+
+def duplicated(ctrl: Controller) -> Controller:
+    """Each node n gets a copy n + N with the same action; edges alternate between originals
+    and copies, so the controller behaves exactly like the original."""
+    N, Z = ctrl.next.shape
+    action = np.concatenate([ctrl.action, ctrl.action])
+    nxt = np.zeros((2 * N, Z), dtype=np.int64)
+    for n in range(2 * N):
+        for o in range(Z):
+            target = int(ctrl.next[n % N, o])
+            nxt[n, o] = target + N if (n + o) % 2 else target
+    return Controller(action, nxt, ctrl.start + N)
+
+
+def test_minimise_merges_duplicates_and_preserves_value(tiger, tiger_solved):
+    ctrl = tiger_solved[1].controller
+    value = value_at_start(tiger, ctrl)
+    dup = duplicated(ctrl)
+    assert value_at_start(tiger, dup) == pytest.approx(value, abs=1e-9)
+    small = minimise(dup)
+    assert small.nodes == minimise(ctrl).nodes <= ctrl.nodes
+    assert small.start == 0
+    assert value_at_start(tiger, small) == pytest.approx(value, abs=1e-9)
+    assert np.all(small.next < small.nodes)
+
+
+def test_minimise_keeps_nodes_that_differ_later(tiger, tiger_solved):
+    """All listening nodes share an action, but merging them would lose the count of evidence."""
+    ctrl = tiger_solved[1].controller
+    listen = tiger.actions.index("listen")
+    assert int((ctrl.action == listen).sum()) >= 2
+    small = minimise(ctrl)
+    assert int((small.action == listen).sum()) == int((ctrl.action == listen).sum())
+    assert value_at_start(tiger, small) == pytest.approx(value_at_start(tiger, ctrl), abs=1e-9)
+
+
+def test_reachable_drops_unreachable_nodes_and_preserves_value(tiger, tiger_solved):
+    ctrl = tiger_solved[1].controller
+    N, Z = ctrl.next.shape
+    # two extra nodes nobody points to (one pointing into the controller, one to itself)
+    action = np.concatenate([ctrl.action, [2, 1]])
+    nxt = np.vstack([ctrl.next, np.zeros((1, Z), dtype=np.int64), np.full((1, Z), N + 1)])
+    # renumber so the start is not node 0: swap node 0 with the last unreachable one
+    perm = np.arange(N + 2)
+    perm[[0, N + 1]] = perm[[N + 1, 0]]
+    inv = np.argsort(perm)
+    big = Controller(action[perm], inv[nxt[perm]], int(inv[ctrl.start]))
+    assert value_at_start(tiger, big) == pytest.approx(value_at_start(tiger, ctrl), abs=1e-9)
+    kept = reachable(big)
+    assert kept.nodes == N
+    assert kept.start == 0
+    assert value_at_start(tiger, kept) == pytest.approx(value_at_start(tiger, ctrl), abs=1e-9)
+    assert minimise(big).nodes == minimise(ctrl).nodes
+
+
+# ------------------------------------------------------------------ Model 1
+
+
+def test_model1_acceptance_controller_within_one_percent_of_lower_bound(m1_result):
+    sol, comp = m1_result.solution, m1_result.compiled
+    assert sol.lower_bound <= sol.upper_bound
+    assert comp.value >= sol.lower_bound - 0.01 * abs(sol.lower_bound)
+    assert comp.value <= sol.upper_bound + 1e-9
+    assert comp.controller.nodes <= m1_result.plan.max_nodes
+    assert np.all(comp.values <= sol.upper_q.max(axis=0)[None, :] + 1e-9)
+
+
+def test_model1_lower_bound_is_monotone_and_history_consistent(m1_result):
+    sol = m1_result.solution
+    lowers = [p.lower for p in sol.history]
+    assert lowers == sorted(lowers)
+    assert sol.history[-1].lower == sol.lower_bound
+    assert all(p.upper == sol.upper_bound for p in sol.history)
+    assert sol.iterations == len(sol.history)
+
+
+def test_model1_solving_is_deterministic(m1):
+    model, _ = m1
+    # 15 backups with expansions every 10: too few for any stall rule, so max_iterations stops it
+    settings = SolverSettings(target_gap=0.0, time_budget_s=1e9, max_iterations=15, max_beliefs=60,
+                              expand_every=10, seed=11)
+    plan = Plan(settings, max_nodes=16)
+    a, b = pipeline.run(model, plan), pipeline.run(model, plan)
+    assert a.solution.stop_reason == b.solution.stop_reason == "max_iterations"
+    assert a.solution.alphas.tobytes() == b.solution.alphas.tobytes()
+    assert np.array_equal(a.solution.actions, b.solution.actions)
+    assert a.solution.witnesses.tobytes() == b.solution.witnesses.tobytes()
+    assert a.table == b.table
+    assert a.sha256 == b.sha256
+
+
+def test_model1_table_matches_the_compiled_controller(m1_result):
+    t = table_format.decode(m1_result.table, expect_model="m1")
+    ctrl = m1_result.compiled.controller
+    assert list(t.action) == ctrl.action.tolist()
+    assert [list(r) for r in t.next] == ctrl.next.tolist()
+    assert t.start == ctrl.start
+    assert t.header["controller_value"] == m1_result.compiled.value
+    assert t.header["model_sha256"] == pipeline.model_digest(m1_result.model)
+    assert t.actions == m1_result.model.actions
+
+
+# ------------------------------------------------------------------ Model 2 (small settings only)
+
+
+def test_model2_small_run_respects_bounds_and_node_budget(m2):
+    model, plan = m2
+    small = Plan(replace(plan.settings, max_iterations=3, max_beliefs=20, expand_every=1), max_nodes=4)
+    result = pipeline.run(model, small)
+    sol, comp = result.solution, result.compiled
+    assert sol.iterations == 3 and sol.stop_reason == "max_iterations"
+    assert sol.lower_bound <= sol.upper_bound
+    assert comp.value <= sol.upper_bound + 1e-9
+    assert comp.controller.nodes <= 4
+    assert np.all(comp.controller.next < comp.controller.nodes)
+    assert comp.value == pytest.approx(value_at_start(model, comp.controller), abs=1e-9)
+    t = table_format.decode(result.table, expect_model="m2")
+    assert t.nodes == comp.controller.nodes and len(t.observations) == 144
