@@ -42,7 +42,16 @@ def _progress_printer(stream) -> Callable:
         elif p.iteration % 25 == 0:
             stream.write(text + "\n")
 
-    show.finish = lambda: (stream.write("\n") if tty else None)  # type: ignore[attr-defined]
+    def finish() -> None:
+        if tty:
+            stream.write("\n")
+
+    def line(text: str) -> None:
+        stream.write(text + "\n")
+        stream.flush()
+
+    show.finish = finish  # type: ignore[attr-defined]
+    show.line = line  # type: ignore[attr-defined]
     return show
 
 
@@ -64,9 +73,17 @@ def cmd_solve(args: argparse.Namespace) -> int:
     plan = replace(plan, settings=settings, max_nodes=args.max_nodes or plan.max_nodes)
     show_progress = not args.json or sys.stderr.isatty()
     printer = _progress_printer(sys.stderr) if show_progress else None
-    result = pipeline.run(model, plan, printer)
-    if printer is not None:
-        printer.finish()
+    started = {"done": False}
+
+    def compile_line(text: str) -> None:
+        if printer is None:
+            return
+        if not started["done"]:
+            printer.finish()
+            started["done"] = True
+        printer.line(text)
+
+    result = pipeline.run(model, plan, printer, compile_line)
     paths = pipeline.write(result, args.out)
     if args.json:
         out = pipeline.figures(result)

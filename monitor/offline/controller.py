@@ -18,7 +18,7 @@ So the value we ship is exact, never the solver's estimate.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -338,13 +338,18 @@ def settle(model: POMDP, ctrl: Controller, max_nodes: int) -> tuple[Controller, 
     return ctrl, evaluate(model, ctrl)
 
 
-def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds: int = 12) -> Compiled:
+def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds: int = 12,
+                       progress: Optional[Callable[[str], None]] = None) -> Compiled:
     """Witness-following controller, improved by point-based policy iteration within the
-    node budget; every round is kept only if the exact value at b0 rises."""
+    node budget; every round is kept only if the exact value at b0 rises. `progress`
+    receives one line per step."""
+    say = progress or (lambda text: None)
     naive = follow_witnesses(model, sol)
     naive_V = evaluate(model, naive)
     best = (value_at(model, naive, naive_V), naive, naive_V)
+    say(f"compile: witness controller, {naive.nodes} nodes, exact value {best[0]:.4f}")
     ctrl, V = settle(model, naive, max_nodes)
+    say(f"compile: re-pointed within {max_nodes} nodes: {ctrl.nodes} nodes, exact value {value_at(model, ctrl, V):.4f}")
     if value_at(model, ctrl, V) > best[0]:
         best = (value_at(model, ctrl, V), ctrl, V)
     done = 0
@@ -356,6 +361,8 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
             break
         cand, cand_V = settle(model, grown, max_nodes)
         value = value_at(model, cand, cand_V)
+        say(f"compile: round {done}, {added} nodes added, {cand.nodes} kept, exact value {value:.4f}"
+            + ("" if value > best[0] + 1e-9 * max(1.0, abs(best[0])) else " (no gain, stop)"))
         if value <= best[0] + 1e-9 * max(1.0, abs(best[0])):
             break
         best = (value, cand, cand_V)
@@ -363,4 +370,5 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
     if ctrl.nodes > max_nodes or ctrl.start != 0:
         ctrl, V = settle(model, ctrl, max_nodes)
         value = value_at(model, ctrl, V)
+    say(f"compile: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
     return Compiled(replace(ctrl, beliefs=None), V, value, value_at(model, naive, naive_V), done)

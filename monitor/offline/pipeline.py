@@ -72,10 +72,11 @@ def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled) -> dic
     }
 
 
-def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]] = None) -> Result:
+def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]] = None,
+        compile_progress: Optional[Callable[[str], None]] = None) -> Result:
     start = time.perf_counter()
     sol = solve(model, plan.settings, progress)
-    comp = compile_controller(model, sol, max_nodes=plan.max_nodes)
+    comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress)
     ctrl = comp.controller
     data = table_format.encode(table_header(model, plan, sol, comp), ctrl.action.tolist(), ctrl.next.tolist())
     return Result(model, plan, sol, comp, data, time.perf_counter() - start)
@@ -125,7 +126,7 @@ def summary_text(result: Result) -> str:
     gap_to_ub = f["upper_bound"] - f["controller_value"]
     lines = [
         f"model            {f['model']}  ({f['states']} states, {f['actions']} actions, {f['observations']} observations)",
-        f"solver           PBVI, {f['iterations']} iterations, stopped on {f['stop_reason']}, {f['seconds']:.1f} s (solve + compile)",
+        f"solver           {result.plan.settings.method}, {f['iterations']} iterations, stopped on {f['stop_reason']}, {f['seconds']:.1f} s (solve + compile)",
         f"lower bound      {f['lower_bound']:.4f}   (alpha vectors at the start belief)",
         f"upper bound      {f['upper_bound']:.4f}   (fast informed bound)",
         f"controller value {f['controller_value']:.4f}   (exact, {f['nodes']} nodes; witness-following before improvement: {f['naive_controller_value']:.4f})",
