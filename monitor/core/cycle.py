@@ -1,0 +1,213 @@
+"""One monitor cycle: step(setup, state, inputs, tick) -> (state, outputs).
+
+freshness -> 2oo2 per module -> 3oo3 across modules -> envelope -> observation -> table ->
+brake latch. Pure: the same setup, state, inputs and tick always give the same result.
+The mode machine is documented in docs/core.md.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from . import config as config_mod
+from .config import Config, ConfigurationError
+from .envelope import braking_distance_dm, combine, envelope_demand, latch, zone
+from .freshness import channel_status
+from .observation import OBSERVATIONS, m2_observation, speed_class
+from .table import Table, TableError, decode
+from .types import (
+    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_SPEED_CMS, NO_DISTANCE, NORMAL,
+    PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
+    R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, SAFE_STOP, STATIC, Inputs, Outputs, State,
+)
+from .voter import disagreement, vote_2oo2, vote_3oo3, vote_single
+
+
+class Setup(NamedTuple):
+    """A checked configuration and table, ready to run."""
+
+    config: Config
+    table: Table
+    model: str
+    timeout_ticks: int
+    action: tuple
+    next: tuple
+    all_seen: int
+
+
+def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> Setup:
+    """Check the configuration and the table together; refuse to start on any mismatch."""
+    config_mod.check(cfg)
+    try:
+        table = decode(table_bytes, expect_model)
+    except TableError as exc:
+        raise ConfigurationError(f"table refused: {exc}") from None
+    model = table.model
+    if model not in OBSERVATIONS:
+        raise ConfigurationError(f"table is for model {model!r}; this monitor maps observations for {', '.join(OBSERVATIONS)}")
+    if table.observations != OBSERVATIONS[model]:
+        raise ConfigurationError(f"table observations do not match model {model!r}'s (a table for a different model?)")
+    if len(table.actions) != 3:
+        raise ConfigurationError(f"table has {len(table.actions)} actions; the monitor needs maintain/service/emergency")
+    step_s = table.header.get("params", {}).get("time_step_s")
+    if step_s is None or round(step_s * 1000) != cfg.period_ms:
+        raise ConfigurationError(f"table was solved for a time step of {step_s} s but period_ms = {cfg.period_ms}")
+    return Setup(cfg, table, model, cfg.timeout_cycles * cfg.period_ms, table.action, table.next,
+                 (1 << cfg.channels) - 1)
+
+
+def initial_state(setup: Setup) -> State:
+    return State(INIT, setup.table.start, False, 0, (0,) * setup.config.modules, 0, 0, 0)
+
+
+def _train(train) -> tuple[int, int, int, bool]:
+    """(speed, track, brake, valid): an invalid train state is read to the safe side."""
+    try:
+        v, k, b = train.speed_cms, train.track, train.brake
+        if 0 <= v <= MAX_SPEED_CMS and k in (0, 1) and b in (0, 1) and not isinstance(v, bool):
+            return v, k, b, True
+    except (AttributeError, TypeError):
+        pass
+    return MAX_SPEED_CMS, 1, 1, False
+
+
+def step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
+    """One cycle. Total: whatever the inputs, it returns a state and outputs; if anything
+    unforeseen went wrong inside, the result is SAFE_STOP with an emergency demand."""
+    try:
+        return _step(setup, state, inputs, tick)
+    except Exception:  # noqa: BLE001 - the monitor must never stop; fail to the safe side
+        out = Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, state.node,
+                      SAFE_STOP, 0, True, 0, state.cycle + 1, state.error_cycles + 1)
+        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=state.cycle + 1,
+                              error_cycles=state.error_cycles + 1), out
+
+
+def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
+    cfg = setup.config
+    reports = tuple(inputs.reports)
+    n = cfg.channels
+    if len(reports) < n:
+        reports = reports + (None,) * (n - len(reports))
+
+    # 1. freshness and range per channel
+    statuses = [channel_status(reports[i], tick, setup.timeout_ticks) for i in range(n)]
+    seen = state.seen
+    stale = False
+    closing = None
+    obstacle = STATIC
+    for i, s in enumerate(statuses):
+        if s == DEGRADED:
+            stale = True
+        else:
+            seen |= 1 << i
+            if s == PRESENT:
+                r = reports[i]
+                closing = r.closing_cms if closing is None or r.closing_cms > closing else closing
+                obstacle = r.obstacle if r.obstacle > obstacle else obstacle
+
+    # 2. 2oo2 per module, with disagreement persistence
+    results = []
+    disagree = []
+    flags = 0
+    perceptor = False
+    for m in range(cfg.modules):
+        sa, sb = statuses[2 * m], statuses[2 * m + 1]
+        da = reports[2 * m].distance_dm if sa == PRESENT else 0
+        db = reports[2 * m + 1].distance_dm if sb == PRESENT else 0
+        res = vote_2oo2(sa, da, sb, db)
+        results.append(res)
+        if res[2]:
+            flags |= 1 << m
+        count = state.disagree[m] + 1 if disagreement(sa, sb) else 0
+        disagree.append(count)
+        if count >= cfg.persistence_cycles:
+            perceptor = True
+
+    # 3. 3oo3 across modules (or the single module)
+    if cfg.modules == 3:
+        (s1, d1, f1), (s2, d2, f2), (s3, d3, f3) = results
+        sys_status, distance, sys_error = vote_3oo3(s1, d1, f1, s2, d2, f2, s3, d3, f3)
+    else:
+        sys_status, distance, sys_error = vote_single(*results[0])
+
+    # 4. envelope at the current speed
+    speed, track, brake, train_ok = _train(inputs.train)
+    alpha1 = braking_distance_dm(speed, cfg.service_decel_mms2, cfg.reaction_ms)
+    alpha2 = braking_distance_dm(speed, cfg.emergency_decel_mms2, cfg.reaction_ms)
+    env = envelope_demand(distance != NO_DISTANCE, distance, alpha2)
+
+    # 5. observation
+    if distance != NO_DISTANCE:
+        z = zone(distance, alpha1, alpha2, cfg.warning_margin_dm)
+    else:
+        z = 3 if sys_status == DEGRADED else 0
+    if setup.model == "m1":
+        obs = z
+    else:
+        spd = speed_class(speed if closing is None else closing, cfg.fast_closing_cms)
+        obs = m2_observation(z, spd, obstacle, track, brake)
+
+    # modes
+    error = sys_error or not train_ok
+    overrun_limit = inputs.overruns >= cfg.max_overruns
+    healthy = 0 if (error or stale or perceptor or overrun_limit) else state.healthy + 1
+    mode = state.mode
+    if perceptor or overrun_limit:
+        mode = SAFE_STOP
+    elif mode == INIT:
+        if seen == setup.all_seen:
+            mode = DEGRADED_MODE if error else NORMAL
+    elif mode == SAFE_STOP:
+        if train_ok and speed == 0 and healthy >= cfg.recovery_cycles:
+            mode = NORMAL
+    elif error:
+        mode = DEGRADED_MODE
+    elif mode == DEGRADED_MODE and healthy >= cfg.recovery_cycles:
+        mode = NORMAL
+
+    # 6. table
+    if mode == INIT:
+        node = setup.table.start
+        table_demand = MAINTAIN
+    else:
+        node = setup.next[state.node][obs]
+        table_demand = setup.action[node]
+
+    # 7. demands, only ever upwards, then the latch
+    reasons = 0
+    error_demand = MAINTAIN
+    if table_demand:
+        reasons |= R_TABLE
+    if env:
+        reasons |= R_ENVELOPE
+    if stale:
+        reasons |= R_STALE
+    if error:
+        error_demand = cfg.safe_reaction
+        reasons |= R_SYSTEM_ERROR | (0 if train_ok else R_TRAIN_INPUT)
+    if mode == INIT:
+        error_demand = EMERGENCY
+        reasons |= R_INIT
+    if mode == SAFE_STOP:
+        error_demand = EMERGENCY
+        reasons |= R_SAFE_STOP | (R_PERCEPTOR if perceptor else 0) | (R_DEADLINE if overrun_limit else 0)
+    demand = combine(table_demand, env, error_demand)
+    latched, final = latch(state.latched, demand, speed)
+    if latched and state.latched:
+        reasons |= R_LATCH
+
+    error_cycles = state.error_cycles + (1 if error or stale else 0)
+    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, state.cycle + 1, error_cycles)
+    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, state.cycle + 1, error_cycles)
+    return new_state, out
+
+
+def replay(setup: Setup, sequence) -> list:
+    """Run the core over recorded (tick, Inputs) pairs from the initial state; the same
+    sequence always gives the same list of Outputs."""
+    state = initial_state(setup)
+    outputs = []
+    for tick, inputs in sequence:
+        state, out = step(setup, state, inputs, tick)
+        outputs.append(out)
+    return outputs
