@@ -6,6 +6,7 @@ The mode machine is documented in docs/core.md.
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 from . import config as config_mod
@@ -48,8 +49,11 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
         raise ConfigurationError(f"table observations do not match model {model!r}'s (a table for a different model?)")
     if len(table.actions) != 3:
         raise ConfigurationError(f"table has {len(table.actions)} actions; the monitor needs maintain/service/emergency")
-    step_s = table.header.get("params", {}).get("time_step_s")
-    if step_s is None or round(step_s * 1000) != cfg.period_ms:
+    params = table.header.get("params")
+    step_s = params.get("time_step_s") if isinstance(params, dict) else None
+    if isinstance(step_s, bool) or not isinstance(step_s, (int, float)) or not math.isfinite(step_s):
+        raise ConfigurationError(f"table header gives no numeric time step (params.time_step_s = {step_s!r})")
+    if round(step_s * 1000) != cfg.period_ms:
         raise ConfigurationError(f"table was solved for a time step of {step_s} s but period_ms = {cfg.period_ms}")
     return Setup(cfg, table, model, cfg.timeout_cycles * cfg.period_ms, table.action, table.next,
                  (1 << cfg.channels) - 1)

@@ -82,6 +82,10 @@ def encode(header: Mapping[str, Any], action: Sequence[int], nxt: Sequence[Seque
     return bytes(body)
 
 
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not allowed in a table header")
+
+
 def decode(data: bytes, expect_model: str | None = None) -> Table:
     """Check and decode a table file's bytes; refuse anything inconsistent."""
     if len(data) < _PREFIX.size + _DIGEST:
@@ -96,7 +100,7 @@ def decode(data: bytes, expect_model: str | None = None) -> Table:
         raise TableError("corrupted: SHA-256 over the content does not match the one stored in the file")
     start = _PREFIX.size
     try:
-        header = json.loads(data[start:start + hlen].decode("utf-8"))
+        header = json.loads(data[start:start + hlen].decode("utf-8"), parse_constant=_no_constant)
     except (UnicodeDecodeError, ValueError) as exc:
         raise TableError(f"header is not valid JSON: {exc}") from None
     if not isinstance(header, dict):

@@ -7,7 +7,7 @@ any flag, DEGRADED module or split obstacle/no-obstacle indication is a system e
 """
 from __future__ import annotations
 
-from .types import ABSENT, DEGRADED, NO_DISTANCE, PRESENT
+from .types import ABSENT, DEGRADED, NO_DISTANCE, PRESENT  # noqa: F401 (NO_DISTANCE documents 65535)
 
 
 def vote_2oo2(sa: int, da: int, sb: int, db: int) -> tuple[int, int, bool]:
@@ -47,20 +47,21 @@ def disagreement(sa: int, sb: int) -> bool:
 def vote_3oo3(s1: int, d1: int, f1: bool, s2: int, d2: int, f2: bool, s3: int, d3: int, f3: bool) -> tuple[int, int, bool]:
     """(status, distance, error) of the system from three module results.
 
+    A module's distance is that of its PRESENT channel(s), NO_DISTANCE (65535) if none, so
+    a fresh obstacle keeps its distance even when the module is DEGRADED because its
+    partner channel is stale: the envelope still sees it.
     pre: 0 <= s1 <= 2 and 0 <= s2 <= 2 and 0 <= s3 <= 2
     pre: 0 <= d1 <= 65535 and 0 <= d2 <= 65535 and 0 <= d3 <= 65535
     post: __return__[0] == max(s1, s2, s3)
     post: __return__[2] == (f1 or f2 or f3 or s1 != s2 or s2 != s3 or max(s1, s2, s3) == 2)
     post: not (s1 != s2 or s2 != s3) or __return__[2]
-    post: __return__[1] == min([d for s, d in ((s1, d1), (s2, d2), (s3, d3)) if s == 1] + [65535])
+    post: __return__[1] == min(d1, d2, d3)
     """
     status = max(s1, s2, s3)
-    distance = NO_DISTANCE
-    if s1 == PRESENT and d1 < distance:
-        distance = d1
-    if s2 == PRESENT and d2 < distance:
+    distance = d1
+    if d2 < distance:
         distance = d2
-    if s3 == PRESENT and d3 < distance:
+    if d3 < distance:
         distance = d3
     error = f1 or f2 or f3 or s1 != s2 or s2 != s3 or status == DEGRADED
     return status, distance, error
@@ -72,6 +73,6 @@ def vote_single(s: int, d: int, f: bool) -> tuple[int, int, bool]:
     pre: 0 <= s <= 2 and 0 <= d <= 65535
     post: __return__[0] == s
     post: __return__[2] == (f or s == 2)
-    post: __return__[1] == (d if s == 1 else 65535)
+    post: __return__[1] == d
     """
-    return s, (d if s == PRESENT else NO_DISTANCE), f or s == DEGRADED
+    return s, d, f or s == DEGRADED
