@@ -21,12 +21,23 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
+    from .core.config import ConfigurationError
     from .core.table import TableError
     from .offline.params import ConfigError
     from .offline.pomdp import ModelError
     from .offline.pomdp_file import PomdpFormatError
 
-    return (UserError, TableError, ConfigError, ModelError, PomdpFormatError, OSError)
+    errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, OSError]
+    try:
+        import can
+
+        from can_bus.replay import ReplayError
+        from can_bus.scenario import ScenarioError
+
+        errors += [ScenarioError, ReplayError, can.CanError]
+    except ImportError:  # the CAN shell is optional for the offline commands
+        pass
+    return tuple(errors)
 
 
 def _progress_printer(stream) -> Callable:
@@ -106,6 +117,181 @@ def cmd_table_show(args: argparse.Namespace) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------- CAN commands
+
+def _table_bytes(spec: str) -> bytes:
+    """A shipped table by model name (m1, m2) or a table file path."""
+    from importlib import resources
+
+    if spec in ("m1", "m2"):
+        return resources.files("monitor.tables").joinpath(f"{spec}.table.rgt").read_bytes()
+    try:
+        return Path(spec).read_bytes()
+    except OSError as exc:
+        raise UserError(f"{spec}: cannot read table: {exc.strerror or exc}") from None
+
+
+def _monitor_setup(args: argparse.Namespace):
+    from .core import config as core_config
+    from .core import cycle
+    from .offline.params import read_toml
+
+    values = {}
+    if args.monitor_config:
+        data = read_toml(args.monitor_config)
+        values = data.get("monitor", data)
+        if not isinstance(values, dict):
+            raise UserError(f"{args.monitor_config}: [monitor] must be a table")
+    try:
+        cfg = core_config.from_mapping(values)
+    except TypeError as exc:
+        raise UserError(f"monitor configuration: {exc}") from None
+    return cycle.create(cfg, _table_bytes(args.table))
+
+
+def _bus_kwargs(args: argparse.Namespace) -> dict | None:
+    """python-can's usual configuration: --interface/--channel, else its environment
+    variables and config files; None if nothing names a bus (then: in-process virtual)."""
+    import can
+
+    given = {k: v for k, v in (("interface", args.interface), ("channel", args.channel)) if v}
+    try:
+        cfg = can.util.load_config(config=given)
+    except can.CanInterfaceNotImplementedError as exc:
+        if given:
+            raise UserError(str(exc)) from None
+        return None
+    if not cfg.get("interface"):
+        return None
+    cfg.setdefault("channel", "vcan0" if cfg["interface"] == "socketcan" else "railguard")
+    if cfg["interface"] == "virtual":
+        cfg.setdefault("receive_own_messages", False)
+    return cfg
+
+
+def _printer(args: argparse.Namespace):
+    if args.json or args.quiet:
+        return None
+    tty = sys.stderr.isatty()
+
+    def show(text: str) -> None:
+        sys.stderr.write(("\r" + text) if tty else text + "\n")
+        sys.stderr.flush()
+
+    return show
+
+
+def _print_summary(summary: dict, as_json: bool, tty_line: bool) -> None:
+    if tty_line:
+        sys.stderr.write("\n")
+    if as_json:
+        print(json.dumps(summary))
+        return
+    width = max(len(k) for k in summary)
+    for key, value in summary.items():
+        if isinstance(value, dict):
+            value = ", ".join(f"{k} {v}" for k, v in value.items()) or "-"
+        elif isinstance(value, list):
+            value = ", ".join(map(str, value)) or "-"
+        print(f"{key:<{width}}  {value}")
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from can_bus import scenario as scenarios
+    from can_bus import session
+
+    setup = _monitor_setup(args)
+    scen = None if args.no_player else scenarios.load(args.scenario)
+    bus = _bus_kwargs(args)
+    out = Path(args.out)
+    show = _printer(args)
+    if bus is None:
+        if scen is None:
+            raise UserError("--no-player needs a real bus (--interface/--channel): on the in-process bus nothing would send")
+        result = session.run_virtual(setup, scen, out, show=show, plot=not args.no_plot)
+    else:
+        result = session.run_on_bus(setup, bus, out, scenario=scen, duration_s=args.duration, show=show,
+                                    plot=not args.no_plot, name=scen.name if scen else str(bus.get("channel")))
+    _print_summary(result.summary, args.json, show is not None and sys.stderr.isatty())
+    return 0
+
+
+def cmd_play(args: argparse.Namespace) -> int:
+    import signal
+    import threading
+
+    import can
+
+    from can_bus import scenario as scenarios
+    from can_bus.clock import WallClock
+    from can_bus.player import Player
+    from can_bus.session import play_loop
+
+    scen = scenarios.load(args.scenario)
+    bus_cfg = _bus_kwargs(args)
+    if bus_cfg is None:
+        raise UserError("play needs a bus: give --interface and --channel (e.g. socketcan vcan0)")
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    bus = can.Bus(**bus_cfg)
+    try:
+        player = Player(bus, scen, args.period, wait_for_monitor=not args.no_wait)
+        play_loop(player, WallClock(), stop)
+    finally:
+        bus.shutdown()
+    summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent,
+                   faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
+    _print_summary(summary, args.json, False)
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from can_bus import replay as rp
+    from can_bus.plot import plot_run
+    from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES
+
+    setup = _monitor_setup(args)
+    decisions, stats = rp.replay(setup, rp.read_frames(args.file))
+    plot_path = None
+    if not args.no_plot:
+        t = [d.tick / 1000 for d in decisions]
+        plot_path = plot_run(Path(args.out) / f"replay-{Path(args.file).stem}.png", f"railguard replay: {Path(args.file).name}",
+                             t, [0.0 if d.speed_cms is None else d.speed_cms / 100 for d in decisions], None,
+                             [None if d.distance_dm == NO_DISTANCE else d.distance_dm / 10 for d in decisions],
+                             [d.demand for d in decisions], [d.mode for d in decisions])
+    changes = [d for i, d in enumerate(decisions) if i == 0 or (d.demand, d.mode) != (decisions[i - 1].demand, decisions[i - 1].mode)]
+    if args.json:
+        print(json.dumps({"cycles": len(decisions), **stats, "plot": None if plot_path is None else str(plot_path),
+                          "decisions": [[d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm] for d in decisions]}))
+        return 0
+    print(f"{len(decisions)} cycles over {decisions[-1].tick / 1000:.1f} s; frames {stats['frames']}, accepted {stats['accepted']}, "
+          f"rejected {sum(stats['rejected'].values())}")
+    if "agreement_with_recorded" in stats:
+        print(f"agreement with the recorded BrakeDemand frames: {stats['agreement_with_recorded']:.1%}")
+    print("    time  demand     mode       node  voted distance  reasons")
+    for d in changes:
+        reasons = ",".join(n for b, n in enumerate(REASON_NAMES) if d.reasons & (1 << b)) or "-"
+        dist = "none" if d.distance_dm == NO_DISTANCE else f"{d.distance_dm / 10:.1f} m"
+        print(f"{d.tick / 1000:8.1f}  {DEMAND_NAMES[d.demand]:<9}  {MODE_NAMES[d.mode]:<9}  {d.node:>4}  {dist:>14}  {reasons}")
+    if plot_path:
+        print(f"plot: {plot_path}")
+    return 0
+
+
+def _add_monitor_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--table", default="m2", metavar="m1|m2|FILE",
+                   help="policy table: a shipped model name or a .table.rgt file (default: %(default)s)")
+    p.add_argument("--monitor-config", metavar="FILE.toml",
+                   help="monitor configuration ([monitor] table: period_ms, timeout_cycles, decelerations, ... see docs/core.md)")
+
+
+def _add_bus_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--interface", help="python-can interface (socketcan, virtual, pcan, ...); default: python-can's "
+                                       "environment/config file, else the in-process virtual bus")
+    p.add_argument("--channel", help="python-can channel (e.g. vcan0)")
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -174,6 +360,53 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("file", metavar="FILE", help="a .table.rgt file")
     show.add_argument("--json", action="store_true", help="print the header and the controller as JSON")
     show.set_defaults(func=cmd_table_show)
+
+    r = sub.add_parser(
+        "run",
+        help="run the cyclic monitor on CAN (default: with the scenario player on the in-process bus)",
+        description="Run the monitor: every period drain the bus, latch the newest valid report per channel, "
+                    "step the core, send BrakeDemand and MonitorStatus. With no bus options the monitor and the "
+                    "built-in scenario player share python-can's in-process virtual bus on a simulated clock "
+                    "(deterministic, as fast as the CPU allows). Writes a candump .log of the bus and a plot, "
+                    "prints a summary. SIGINT/SIGTERM: a last emergency demand, the summary, exit 0.",
+    )
+    _add_monitor_options(r)
+    _add_bus_options(r)
+    r.add_argument("--scenario", default="static-obstacle", metavar="NAME|FILE.toml",
+                   help="scenario for the player (shipped: static-obstacle, moving-obstacle, no-obstacle, fault-cascade)")
+    r.add_argument("--no-player", action="store_true", help="monitor only (a real bus where others send)")
+    r.add_argument("--duration", type=_positive_float, metavar="S", help="stop after S seconds (real bus)")
+    r.add_argument("--out", default="railguard-out", metavar="DIR", help="folder for the .log and the plot (default: %(default)s)")
+    r.add_argument("--no-plot", action="store_true", help="do not draw the plot")
+    r.add_argument("--quiet", action="store_true", help="no live status line")
+    r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    r.set_defaults(func=cmd_run)
+
+    pl = sub.add_parser(
+        "play",
+        help="run the scenario player alone on a bus (the monitor runs elsewhere)",
+        description="Simulate the train and the six sensor channels of a scenario on a real bus, in real time. "
+                    "The train waits at the entry until the monitor reports NORMAL with no demand.",
+    )
+    pl.add_argument("scenario", metavar="SCENARIO", help="a shipped scenario name or a .toml file")
+    _add_bus_options(pl)
+    pl.add_argument("--period", type=_positive_int, default=100, metavar="MS", help="send period (default: %(default)s ms)")
+    pl.add_argument("--no-wait", action="store_true", help="start at once, do not wait for the monitor")
+    pl.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
+    pl.set_defaults(func=cmd_play)
+
+    rp = sub.add_parser(
+        "replay",
+        help="run the core over a recorded bus log and show its decisions",
+        description="Replay a recorded bus log (.log, .asc, .blf, ... anything python-can reads) through the core, "
+                    "print where demand and mode change, and plot; the same file always gives the same decisions.",
+    )
+    rp.add_argument("file", metavar="FILE", help="a CAN log file")
+    _add_monitor_options(rp)
+    rp.add_argument("--out", default="railguard-out", metavar="DIR", help="folder for the plot (default: %(default)s)")
+    rp.add_argument("--no-plot", action="store_true", help="do not draw the plot")
+    rp.add_argument("--json", action="store_true", help="print every decision as JSON")
+    rp.set_defaults(func=cmd_replay)
     return parser
 
 

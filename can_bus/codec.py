@@ -1,0 +1,169 @@
+"""Encode and check the railguard CAN messages (can_bus/railguard.dbc) with E2E protection.
+
+Every message uses the AUTOSAR E2E profile 2 layout: CRC-8 in byte 0 over bytes 1..7 and
+the message's data ID (the low byte of its frame ID), alive counter in the low nibble of
+byte 1. cantools packs the signals and computes the CRC; the counter check is ours.
+
+`Receiver.accept` never raises: a frame that fails any check is counted by reason and
+dropped. The channel it came from then simply stops being refreshed, and the core's
+freshness rule ages it into DEGRADED.
+"""
+from __future__ import annotations
+
+from collections import Counter as Tally
+from dataclasses import dataclass, field
+from functools import lru_cache
+from importlib import resources
+from typing import Optional
+
+import cantools
+from cantools.autosar.end_to_end import apply_profile2_crc, check_profile2_crc
+
+from monitor.core.types import Report, Train
+
+DBC_NAME = "railguard.dbc"
+BRAKE_DEMAND_ID = 0x10
+OBSTACLE_IDS = tuple(range(0x20, 0x26))     # channel i of module i // 2
+TRAIN_STATE_ID = 0x30
+MONITOR_STATUS_ID = 0x40
+FRAME_LENGTH = 8
+
+REJECT_REASONS = ("unknown_id", "wrong_length", "bad_crc", "repeated_counter", "counter_jump",
+                  "out_of_range", "undecodable")
+
+
+@lru_cache(maxsize=1)
+def database() -> cantools.database.can.Database:
+    """The DBC shipped with the package (parsed once)."""
+    text = resources.files("can_bus").joinpath(DBC_NAME).read_text(encoding="utf-8")
+    return cantools.database.load_string(text, database_format="dbc")
+
+
+def data_id(frame_id: int) -> int:
+    return frame_id & 0xFF
+
+
+def encode(frame_id: int, signals: dict, counter: int) -> bytes:
+    """Pack signals (raw integer values) with the alive counter, then apply the CRC."""
+    msg = database().get_message_by_frame_id(frame_id)
+    values = {s.name: 0 for s in msg.signals}
+    values.update(signals)
+    values["Counter"] = counter & 0xF
+    values["Crc"] = 0
+    payload = bytearray(msg.encode(values, scaling=False, strict=False, padding=False))
+    return bytes(apply_profile2_crc(payload, data_id(frame_id)))
+
+
+def report_signals(report: Report, channel: int) -> dict:
+    """Raw signals of an ObstacleReport: the core's units are the DBC's raw units."""
+    return {
+        "Status": report.status, "ObstacleType": report.obstacle, "Distance": report.distance_dm,
+        "ClosingSpeed": report.closing_cms, "Module": channel // 2, "Channel": channel % 2,
+    }
+
+
+@dataclass
+class SenderState:
+    counter: Optional[int] = None
+
+
+@dataclass
+class Receiver:
+    """Checks incoming frames and latches the newest valid report per channel.
+
+    `reports[i]` is the newest valid report of channel i with the tick it arrived, None until
+    the first; `train` the newest valid TrainState. `rejected` counts drops by reason.
+    """
+
+    channels: int = 6
+    reports: list = field(default_factory=list)
+    train: Optional[Train] = None
+    train_tick: Optional[int] = None
+    demand: Optional[dict] = None          # newest BrakeDemand (for the player and replay)
+    status: Optional[dict] = None          # newest MonitorStatus
+    accepted: int = 0
+    rejected: Tally = field(default_factory=Tally)
+    senders: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.reports:
+            self.reports = [None] * self.channels
+
+    @property
+    def rejected_total(self) -> int:
+        return sum(self.rejected.values())
+
+    def _reject(self, reason: str) -> None:
+        self.rejected[reason] += 1
+
+    def accept(self, frame_id, data, tick: int) -> Optional[str]:
+        """Check one frame; on success latch its content and return the message name,
+        otherwise count the reason and return None. Never raises."""
+        try:
+            return self._accept(int(frame_id), bytes(data), tick)
+        except Exception:  # noqa: BLE001 - whatever the bytes, the receive path must go on
+            self._reject("undecodable")
+            return None
+
+    def _accept(self, frame_id: int, data: bytes, tick: int) -> Optional[str]:
+        db = database()
+        try:
+            msg = db.get_message_by_frame_id(frame_id)
+        except KeyError:
+            self._reject("unknown_id")
+            return None
+        if len(data) != FRAME_LENGTH:
+            self._reject("wrong_length")
+            return None
+        if not check_profile2_crc(data, data_id(frame_id)):
+            self._reject("bad_crc")
+            return None
+        counter = data[1] & 0xF
+        state = self.senders.setdefault(frame_id, SenderState())
+        if state.counter is not None:
+            delta = (counter - state.counter) & 0xF
+            if delta == 0:
+                self._reject("repeated_counter")
+                return None
+            if delta != 1:
+                state.counter = counter          # resynchronise on the next frame
+                self._reject("counter_jump")
+                return None
+        state.counter = counter
+        raw = msg.decode(data, decode_choices=False, scaling=False)
+        for sig in msg.signals:
+            lo, hi = sig.minimum, sig.maximum
+            value = raw[sig.name] * sig.scale + sig.offset
+            if (lo is not None and value < lo - 1e-9) or (hi is not None and value > hi + 1e-9):
+                self._reject("out_of_range")
+                return None
+        self.accepted += 1
+        if frame_id in OBSTACLE_IDS:
+            ch = frame_id - OBSTACLE_IDS[0]
+            if ch < self.channels and raw["Module"] == ch // 2 and raw["Channel"] == ch % 2:
+                self.reports[ch] = Report(raw["Status"], raw["Distance"], raw["ClosingSpeed"],
+                                          raw["ObstacleType"], tick)
+            else:
+                self.accepted -= 1
+                self._reject("out_of_range")     # a report claiming another module/channel
+                return None
+        elif frame_id == TRAIN_STATE_ID:
+            self.train = Train(raw["Speed"], raw["TrackCondition"], raw["BrakeStatus"])
+            self.train_tick = tick
+        elif frame_id == BRAKE_DEMAND_ID:
+            self.demand = dict(raw, tick=tick)
+        elif frame_id == MONITOR_STATUS_ID:
+            self.status = dict(raw, tick=tick)
+        return msg.name
+
+
+class Sender:
+    """Keeps one alive counter per frame ID and encodes frames in order."""
+
+    def __init__(self) -> None:
+        self.counters: dict[int, int] = {}
+
+    def frame(self, frame_id: int, signals: dict) -> bytes:
+        c = (self.counters.get(frame_id, -1) + 1) & 0xF
+        self.counters[frame_id] = c
+        return encode(frame_id, signals, c)

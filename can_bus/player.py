@@ -1,0 +1,220 @@
+"""The scenario player: a simulated train and six simulated sensor channels on the bus.
+
+Every period it reads the newest valid BrakeDemand (a demand older than three periods, or
+none at all, is read as emergency: the train fails safe), moves the train (brake force
+building up over `brake_delay_s`), and sends TrainState and one ObstacleReport per channel
+with Gaussian distance noise, missed detections and the scenario's injected faults.
+
+The train waits at the entry of the section (speed 0) until the monitor reports NORMAL
+with no demand, as a train waits for its protection system, then enters at its speed.
+"""
+from __future__ import annotations
+
+import math
+import random
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Optional
+
+import can
+
+from monitor.core.types import ABSENT, PRESENT, Report
+
+from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals
+from .scenario import OBSTACLE_TYPES, Scenario
+
+STALE_DEMAND_PERIODS = 3
+STALE_REPORT_PERIODS = 10
+
+
+@dataclass
+class TraceRow:
+    t_s: float
+    speed_mps: float
+    distance_m: Optional[float]   # true distance to the nearest obstacle ahead, None if none
+    demand: int
+    mode: Optional[int]
+
+
+@dataclass
+class Player:
+    bus: can.BusABC
+    scenario: Scenario
+    period_ms: int = 100
+    wait_for_monitor: bool = True
+    receiver: Receiver = field(default_factory=Receiver)
+    sender: Sender = field(default_factory=Sender)
+    trace: list = field(default_factory=list)
+    frames_sent: int = 0
+    faults_injected: set = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        s = self.scenario
+        self.rngs = [random.Random(s.sensors.seed * 101 + ch) for ch in range(6)]
+        self.started = not self.wait_for_monitor
+        self.t = 0.0
+        self.position = 0.0
+        self.speed = s.train.speed_mps
+        self.decel = 0.0
+        self.collision = False
+        self.stop_margin: Optional[float] = None
+        self.history: deque = deque(maxlen=STALE_REPORT_PERIODS + 1)
+        self.frozen: dict = {}
+        self.jump = [0] * 6
+
+    # ------------------------------------------------------------------ world
+    def obstacle_distance(self) -> Optional[tuple[float, object]]:
+        """(distance, spec) of the nearest obstacle present ahead, None if none."""
+        best = None
+        for o in self.scenario.obstacles:
+            if self.t < o.appear_s:
+                continue
+            pos = o.position_m + o.speed_mps * (self.t - o.appear_s)
+            d = pos - self.position
+            if best is None or d < best[0]:
+                best = (d, o)
+        return best
+
+    def demand(self, tick: int) -> int:
+        d = self.receiver.demand
+        if d is None or tick - d["tick"] > STALE_DEMAND_PERIODS * self.period_ms:
+            return 2
+        return int(d["Level"])
+
+    def move(self, level: int) -> None:
+        tr = self.scenario.train
+        dt = self.period_ms / 1000
+        target = (0.0, tr.service_decel_mps2, tr.emergency_decel_mps2)[level]
+        rate = tr.emergency_decel_mps2 / tr.brake_delay_s if tr.brake_delay_s > 0 else math.inf
+        self.decel += max(-rate * dt, min(rate * dt, target - self.decel))
+        if self.collision:
+            self.speed = 0.0
+            return
+        new_speed = max(0.0, self.speed - self.decel * dt)
+        self.position += (self.speed + new_speed) / 2 * dt
+        self.speed = new_speed
+        self.t += dt
+        near = self.obstacle_distance()
+        if near is not None and near[0] <= 0:
+            self.collision = True
+            self.speed = 0.0
+        elif near is not None and self.speed == 0.0 and self.stop_margin is None:
+            self.stop_margin = near[0]
+
+    # ------------------------------------------------------------------ sensors
+    def true_report(self, ch: int, tick: int) -> Report:
+        s = self.scenario.sensors
+        near = self.obstacle_distance()
+        if near is None or near[0] > s.range_m or near[0] < 0:
+            return Report(ABSENT, 0, 0, 0, tick)
+        d, spec = near
+        sigma = s.noise_sigma_m * (50.0 if self.active("noise_burst", ch) else 1.0)
+        rng = self.rngs[ch]
+        noisy = max(0.0, d + rng.gauss(0.0, sigma)) if sigma > 0 else d
+        missed = rng.random() < s.miss_probability or self.active("missed_detection", ch)
+        closing = self.speed - spec.speed_mps
+        rep = Report(PRESENT, min(60000, round(noisy * 10)), max(-15000, min(15000, round(closing * 100))),
+                     OBSTACLE_TYPES.index(spec.type), tick)
+        return rep._replace(status=ABSENT, distance_dm=0) if missed else rep
+
+    def active(self, kind: str, ch: int) -> bool:
+        for f in self.scenario.faults:
+            if f.kind == kind and f.channel == ch and f.start_s <= self.t < f.end_s:
+                self.faults_injected.add((f.kind, f.channel))
+                return True
+        return False
+
+    def fault_rate(self, ch: int) -> int:
+        for f in self.scenario.faults:
+            if f.kind == "babble" and f.channel == ch and f.start_s <= self.t < f.end_s:
+                self.faults_injected.add((f.kind, f.channel))
+                return f.rate
+        return 1
+
+    def send(self, frame_id: int, data: bytes) -> None:
+        try:
+            self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False))
+            self.frames_sent += 1
+        except can.CanError:
+            pass
+
+    def send_reports(self, tick: int) -> None:
+        reports = [self.true_report(ch, tick) for ch in range(6)]
+        self.history.append(reports)
+        for ch in range(6):
+            rep = reports[ch]
+            if self.active("stale_timestamp", ch):
+                rep = self.history[0][ch]
+            if self.active("stuck", ch):
+                rep = self.frozen.setdefault(ch, rep)
+            else:
+                self.frozen.pop(ch, None)
+            if self.active("contradiction", ch):
+                rep = rep._replace(status=ABSENT if rep.status == PRESENT else PRESENT,
+                                   distance_dm=rep.distance_dm or 1000)
+            if self.active("silence", ch):
+                continue
+            fid = OBSTACLE_IDS[ch]
+            for _ in range(self.fault_rate(ch)):
+                if self.active("counter_freeze", ch) and fid in self.sender.counters:
+                    self.sender.counters[fid] = (self.sender.counters[fid] - 1) & 0xF
+                if self.active("counter_jump", ch) and fid in self.sender.counters:
+                    self.sender.counters[fid] = (self.sender.counters[fid] + 4) & 0xF
+                data = bytearray(self.sender.frame(fid, report_signals(rep, ch)))
+                if self.active("bad_crc", ch):
+                    data[0] ^= 0x5A
+                if self.active("wrong_length", ch):
+                    data = data[:6]
+                self.send(fid, bytes(data))
+
+    # ------------------------------------------------------------------ one period
+    def drain(self, tick: int) -> None:
+        while True:
+            msg = self.bus.recv(timeout=0.0)
+            if msg is None:
+                return
+            if not (msg.is_error_frame or msg.is_remote_frame):
+                self.receiver.accept(msg.arbitration_id, msg.data, tick)
+
+    def step(self, tick: int) -> None:
+        self.drain(tick)
+        status = self.receiver.status
+        mode = None if status is None else int(status["Mode"])
+        if not self.started:
+            ready = mode == 1 and self.receiver.demand is not None and self.receiver.demand["Level"] == 0
+            if ready:
+                self.started = True
+        level = self.demand(tick)
+        if self.started:
+            self.move(level)
+        speed = self.speed if self.started else 0.0
+        tr = self.scenario.train
+        self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, {
+            "Speed": round(speed * 100), "TrackCondition": int(tr.track == "slippery"),
+            "BrakeStatus": int(tr.brake == "degraded")}))
+        self.send_reports(tick)
+        near = self.obstacle_distance()
+        self.trace.append(TraceRow(self.t, speed, None if near is None else near[0], level, mode))
+
+    @property
+    def finished(self) -> bool:
+        return self.started and self.t >= self.scenario.duration_s - 1e-9
+
+    def outcome(self) -> dict:
+        saw_obstacle = any(r.distance_m is not None for r in self.trace)
+        if self.collision:
+            result = "collision"
+        elif saw_obstacle:
+            # "avoided": an obstacle was there, no collision, but the train never stood still
+            result = "stopped" if self.stop_margin is not None else "avoided"
+        else:
+            result = "no_obstacle"
+        return {
+            "outcome": result,
+            "margin_m": None if self.stop_margin is None else round(self.stop_margin, 2),
+            "scenario_s": round(self.t, 1),
+            "final_speed_mps": round(self.speed, 3),
+        }
+
+
+__all__ = ["Player", "TraceRow", "MONITOR_STATUS_ID"]

@@ -1,0 +1,230 @@
+"""`railguard run`: the monitor and (optionally) the scenario player on one bus, a bus
+recording, a summary and a plot.
+
+On python-can's in-process `virtual` bus the two share a simulated clock and interleave
+period by period (player sends, monitor drains and steps), so a run is deterministic and
+takes no wall time. On a real bus (SocketCAN vcan0, a HIL rig) the monitor runs in real
+time; the player then runs as a separate process (`railguard play`) or in a thread.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import can
+
+from monitor.core import cycle as core
+from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES
+
+from .clock import SimClock, WallClock
+from .player import Player
+from .runner import MonitorRunner
+from .scenario import Scenario
+
+VIRTUAL_CHANNEL = "railguard"
+
+
+@dataclass
+class Recorder:
+    """Writes every frame on the bus to a candump .log (python-can's writer)."""
+
+    bus: can.BusABC
+    path: Path
+    clock: object
+    count: int = 0
+
+    def __post_init__(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.writer = can.CanutilsLogWriter(str(self.path), channel="vcan0")
+
+    def drain(self) -> None:
+        while True:
+            msg = self.bus.recv(timeout=0.0)
+            if msg is None:
+                return
+            if self.clock.simulated:
+                msg.timestamp = self.clock.now_s()
+            self.writer.on_message_received(msg)
+            self.count += 1
+
+    def close(self) -> None:
+        self.drain()
+        self.writer.stop()
+
+
+@dataclass
+class RunResult:
+    summary: dict
+    runner: MonitorRunner
+    player: Optional[Player] = None
+    extra: dict = field(default_factory=dict)
+
+
+def detected_faults(runner: MonitorRunner) -> dict:
+    """What the monitor noticed: rejected frames by reason, and diagnostic reason bits."""
+    seen = Counter()
+    for rec in runner.records:
+        for bit, name in enumerate(REASON_NAMES):
+            if rec.reasons & (1 << bit) and name in ("stale", "system_error", "perceptor", "deadline", "train_input"):
+                seen[name] += 1
+    out = {f"frames_{k}": v for k, v in sorted(runner.receiver.rejected.items())}
+    out.update({f"cycles_{k}": v for k, v in sorted(seen.items())})
+    return out
+
+
+def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Path], plot: Optional[Path]) -> dict:
+    levels = Counter(DEMAND_NAMES[r.demand] for r in runner.records)
+    changes = sum(1 for a, b in zip(runner.records, runner.records[1:]) if a.demand != b.demand)
+    summary = {
+        "outcome": "monitor_only",
+        "margin_m": None,
+        "cycles": len(runner.records),
+        "demands": {name: levels.get(name, 0) for name in DEMAND_NAMES},
+        "demand_changes": changes,
+        "first_emergency_s": next((r.tick / 1000 for r in runner.records if r.demand == 2 and r.mode != 0), None),
+        "faults_detected": detected_faults(runner),
+        "frames_received": runner.frames_received,
+        "frames_rejected": runner.receiver.rejected_total,
+        "deadline_misses": runner.deadline_misses,
+        "table": runner.setup.model,
+        "table_sha256": runner.setup.table.sha256,
+        "log": None if log is None else str(log),
+        "plot": None if plot is None else str(plot),
+    }
+    if player is not None:
+        summary.update(player.outcome())
+        summary["scenario"] = player.scenario.name
+        summary["faults_injected"] = sorted(f"{k}@ch{c}" for k, c in player.faults_injected)
+    return summary
+
+
+def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title: str) -> Path:
+    from .plot import plot_run
+
+    recs = runner.records
+    t = [r.tick / 1000 for r in recs]
+    voted = [None if r.distance_dm == NO_DISTANCE else r.distance_dm / 10 for r in recs]
+    if player is not None and len(player.trace) >= len(recs):
+        rows = player.trace[: len(recs)]
+        speed = [row.speed_mps for row in rows]
+        true_d = [row.distance_m for row in rows]
+    else:
+        speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
+        true_d = None
+    return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs])
+
+
+def status_line(rec, player: Optional[Player]) -> str:
+    speed = f"{player.speed:5.1f} m/s" if player is not None else (
+        "   -     " if rec.speed_cms is None else f"{rec.speed_cms / 100:5.1f} m/s")
+    dist = "   none " if rec.distance_dm == NO_DISTANCE else f"{rec.distance_dm / 10:7.1f}"
+    return (f"t {rec.tick / 1000:7.1f} s  speed {speed}  voted distance {dist} m  "
+            f"demand {DEMAND_NAMES[rec.demand]:<9}  mode {MODE_NAMES[rec.mode]:<9}  node {rec.node}")
+
+
+def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: Optional[Callable[[str], None]] = None,
+                plot: bool = True) -> RunResult:
+    """Monitor + player + recorder on the in-process virtual bus, simulated clock."""
+    clock = SimClock()
+    period = setup.config.period_ms
+    buses = [can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False) for _ in range(3)]
+    mon_bus, player_bus, rec_bus = buses
+    log_path = out_dir / f"run-{scenario.name}.log"
+    recorder = Recorder(rec_bus, log_path, clock)
+    try:
+        runner = MonitorRunner(mon_bus, setup, clock)
+        player = Player(player_bus, scenario, period)
+        tick = 0
+        limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
+        for i in range(limit):
+            clock.sleep_until_ms(tick)
+            player.step(tick)
+            runner.drain()
+            rec = runner.cycle()
+            recorder.drain()
+            if show is not None and i % 10 == 0:
+                show(status_line(runner.records[-1], player))
+            if player.finished:
+                break
+            tick += period
+        runner.send_final_emergency()
+        recorder.close()
+    finally:
+        for b in buses:
+            b.shutdown()
+    plot_path = make_plot(out_dir / f"run-{scenario.name}.png", runner, player, f"railguard run: {scenario.name}") if plot else None
+    return RunResult(summarise(runner, player, log_path, plot_path), runner, player)
+
+
+def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: Optional[Scenario],
+               duration_s: Optional[float], show: Optional[Callable[[str], None]] = None, plot: bool = True,
+               name: str = "bus") -> RunResult:
+    """The monitor in real time on a real bus; with a scenario, the player runs in a thread
+    on its own bus connection. SIGINT/SIGTERM end the run: one last emergency demand, the
+    summary, exit 0."""
+    clock = WallClock()
+    stop = threading.Event()
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+        except ValueError:   # not in the main thread
+            pass
+    mon_bus = can.Bus(**bus_kwargs)
+    log_path = out_dir / f"run-{name}.log"
+    rec_bus = can.Bus(**bus_kwargs)
+    recorder = Recorder(rec_bus, log_path, clock)
+    player = None
+    player_thread = None
+    player_bus = None
+    try:
+        runner = MonitorRunner(mon_bus, setup, clock)
+        period = setup.config.period_ms
+        if scenario is not None:
+            player_bus = can.Bus(**bus_kwargs)
+            player = Player(player_bus, scenario, period)
+            player_thread = threading.Thread(target=play_loop, args=(player, clock, stop), daemon=True)
+            player_thread.start()
+        cycles = None if duration_s is None else int(duration_s * 1000 / period)
+        done = 0
+        while not stop.is_set() and (cycles is None or done < cycles):
+            runner.drain(runner.next_tick)
+            clock.sleep_until_ms(runner.next_tick)
+            rec = runner.cycle()
+            recorder.drain()
+            done += 1
+            if show is not None and done % 10 == 0:
+                show(status_line(rec, player))
+            if player is not None and player.finished:
+                break
+        stop.set()
+        runner.send_final_emergency()
+        if player_thread is not None:
+            player_thread.join(timeout=2)
+        recorder.close()
+    finally:
+        for b in (mon_bus, rec_bus, player_bus):
+            if b is not None:
+                b.shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    plot_path = make_plot(out_dir / f"run-{name}.png", runner, player, f"railguard run on {name}") if plot else None
+    return RunResult(summarise(runner, player, log_path, plot_path), runner, player)
+
+
+def play_loop(player: Player, clock, stop: threading.Event) -> None:
+    """Run the player in real time until its scenario ends or `stop` is set."""
+    tick = clock.now_ms()
+    while not stop.is_set() and not player.finished:
+        clock.sleep_until_ms(tick)
+        player.step(tick)
+        tick += player.period_ms
+
+
+def eprint(text: str) -> None:
+    print(text, file=sys.stderr)
