@@ -67,7 +67,7 @@ def _train(train) -> tuple[int, int, int, bool]:
     """(speed, track, brake, valid): an invalid train state is read to the safe side."""
     try:
         v, k, b = train.speed_cms, train.track, train.brake
-        if 0 <= v <= MAX_SPEED_CMS and k in (0, 1) and b in (0, 1) and not isinstance(v, bool):
+        if type(v) is int and type(k) is int and type(b) is int and 0 <= v <= MAX_SPEED_CMS and k in (0, 1) and b in (0, 1):
             return v, k, b, True
     except (AttributeError, TypeError):
         pass

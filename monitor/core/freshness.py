@@ -44,10 +44,14 @@ def effective_status(status: int, distance_dm: int, closing_cms: int, obstacle: 
 
 
 def channel_status(report, now: int, timeout_ticks: int) -> int:
-    """effective_status of a Report, DEGRADED for a channel never heard from (None)."""
+    """effective_status of a Report; DEGRADED for a channel never heard from (None) and for
+    a report with a field that is not an int (bool, float, str, None)."""
     if report is None:
         return DEGRADED
     try:
+        if not (type(report.status) is int and type(report.distance_dm) is int and type(report.closing_cms) is int
+                and type(report.obstacle) is int and type(report.tick) is int):
+            return DEGRADED  # integers only (floats would break bit-exact agreement with the C core)
         return effective_status(report.status, report.distance_dm, report.closing_cms,
                                 report.obstacle, report.tick, now, timeout_ticks)
     except TypeError:  # a field that is not a number: as bad as out of range
