@@ -127,9 +127,35 @@ def status_line(rec, player: Optional[Player]) -> str:
             f"demand {DEMAND_NAMES[rec.demand]:<9}  mode {MODE_NAMES[rec.mode]:<9}  node {rec.node}")
 
 
+class StopOnSignal:
+    """SIGINT/SIGTERM set a flag instead of killing the run, so that the run can end with a
+    last emergency demand and its summary (restored on exit; a no-op outside the main thread)."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.previous = {}
+
+    def __enter__(self) -> threading.Event:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self.previous[sig] = signal.signal(sig, lambda *_: self.event.set())
+            except ValueError:
+                pass
+        return self.event
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+
+
 def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: Optional[Callable[[str], None]] = None,
                 plot: bool = True) -> RunResult:
     """Monitor + player + recorder on the in-process virtual bus, simulated clock."""
+    with StopOnSignal() as stop:
+        return _run_virtual(setup, scenario, out_dir, show, plot, stop)
+
+
+def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event) -> RunResult:
     clock = SimClock()
     period = setup.config.period_ms
     buses = [can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False) for _ in range(3)]
@@ -149,7 +175,7 @@ def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: O
             recorder.drain()
             if show is not None and i % 10 == 0:
                 show(status_line(runner.records[-1], player))
-            if player.finished:
+            if player.finished or stop.is_set():
                 break
             tick += period
         runner.send_final_emergency()
@@ -167,14 +193,12 @@ def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: 
     """The monitor in real time on a real bus; with a scenario, the player runs in a thread
     on its own bus connection. SIGINT/SIGTERM end the run: one last emergency demand, the
     summary, exit 0."""
+    with StopOnSignal() as stop:
+        return _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop)
+
+
+def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop: threading.Event) -> RunResult:
     clock = WallClock()
-    stop = threading.Event()
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, lambda *_: stop.set())
-        except ValueError:   # not in the main thread
-            pass
     mon_bus = can.Bus(**bus_kwargs)
     log_path = out_dir / f"run-{name}.log"
     rec_bus = can.Bus(**bus_kwargs)
@@ -211,8 +235,6 @@ def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: 
         for b in (mon_bus, rec_bus, player_bus):
             if b is not None:
                 b.shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
     plot_path = make_plot(out_dir / f"run-{name}.png", runner, player, f"railguard run on {name}") if plot else None
     return RunResult(summarise(runner, player, log_path, plot_path), runner, player)
 
