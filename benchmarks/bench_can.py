@@ -1,9 +1,10 @@
 """The CAN runner on the host's in-process virtual bus, in real time (wall clock).
 
-1. Sustained input rate: a sender thread offers valid ObstacleReport frames (six channels,
-   round robin, correct counters and CRCs) at a fixed rate for a few seconds while the
-   runner runs its 100 ms cycle; a rate passes if every frame is accepted (no counter
-   jump, i.e. none lost or reordered) and no deadline is missed.
+1. Sustained input rate: a sender thread offers valid ObstacleReport and TrainState frames
+   (seven senders, round robin, correct counters and CRCs) at a fixed rate for a few
+   seconds while the runner runs its 100 ms cycle; a rate passes if every frame is accepted
+   (no counter jump, i.e. none lost or reordered) and no deadline is missed. The babbling
+   check is switched off for this measurement (see throughput()).
 2. Latency: at a random phase of the cycle all six channels report an obstacle inside the
    emergency braking distance; the time from that frame to the BrakeDemand frame with
    level 2 is measured (bus timestamps). Between trials the train stands still for two
@@ -47,6 +48,10 @@ def throughput(rate: int, seconds: float, channel: str) -> dict:
     mon = can.Bus(interface="virtual", channel=channel)
     tx = can.Bus(interface="virtual", channel=channel)
     runner = MonitorRunner(mon, setup(), WallClock())
+    # Six senders cannot fill a bus at their nominal 10 frames/s; offered this fast they would
+    # (rightly) be quarantined as babbling. Switch the rate check off to measure the capacity
+    # of the receive path itself: CRC, counters, ranges, latching, the cycle.
+    runner.receiver.rate_window_ms = 0
     sender = Sender()
     # pre-encode 16 frames per channel (one per counter value) so that the sender is cheap
     frames = []

@@ -27,9 +27,12 @@ OBSTACLE_IDS = tuple(range(0x20, 0x26))     # channel i of module i // 2
 TRAIN_STATE_ID = 0x30
 MONITOR_STATUS_ID = 0x40
 FRAME_LENGTH = 8
+INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor reads (rate-checked)
 
 REJECT_REASONS = ("unknown_id", "wrong_length", "bad_crc", "repeated_counter", "counter_jump",
-                  "out_of_range", "undecodable")
+                  "out_of_range", "rate_exceeded", "undecodable")
+BABBLE_QUARANTINE_MS = 500   # a babbling sender is ignored this long after its last excess frame
+MAX_FRAMES_PER_WINDOW = 3    # more frames than this from one sender within one period: babbling
 
 
 @lru_cache(maxsize=1)
@@ -65,6 +68,8 @@ def report_signals(report: Report, channel: int) -> dict:
 @dataclass
 class SenderState:
     counter: Optional[int] = None
+    recent: list = field(default_factory=list)   # ticks of its frames within the rate window
+    quarantine_until: Optional[int] = None   # babbling: its frames are refused until this tick
 
 
 @dataclass
@@ -73,9 +78,18 @@ class Receiver:
 
     `reports[i]` is the newest valid report of channel i with the tick it arrived, None until
     the first; `train` the newest valid TrainState. `rejected` counts drops by reason.
+
+    Babbling: an input sender (obstacle channel or TrainState) with more than
+    MAX_FRAMES_PER_WINDOW frames within `rate_window_ms` (the runner and the replay set one
+    cycle period; 0, the default, switches the check off) is quarantined for
+    BABBLE_QUARANTINE_MS after its last excess frame: its frames are refused and, for an
+    obstacle channel, its latched report is withdrawn, so the core sees the channel as
+    DEGRADED (never heard from) and brakes to the safe side. Ordinary jitter (two frames
+    of one period close together) stays well under the limit.
     """
 
     channels: int = 6
+    rate_window_ms: int = 0
     reports: list = field(default_factory=list)
     train: Optional[Train] = None
     train_tick: Optional[int] = None
@@ -96,9 +110,13 @@ class Receiver:
     def _reject(self, reason: str) -> None:
         self.rejected[reason] += 1
 
-    def accept(self, frame_id, data, tick: int) -> Optional[str]:
+    def accept(self, frame_id, data, tick: int, extended: bool = False) -> Optional[str]:
         """Check one frame; on success latch its content and return the message name,
-        otherwise count the reason and return None. Never raises."""
+        otherwise count the reason and return None. Never raises. The DBC has only
+        11-bit identifiers, so an extended (29-bit) frame is an unknown ID."""
+        if extended:
+            self._reject("unknown_id")
+            return None
         try:
             return self._accept(int(frame_id), bytes(data), tick)
         except Exception:  # noqa: BLE001 - whatever the bytes, the receive path must go on
@@ -120,6 +138,17 @@ class Receiver:
             return None
         counter = data[1] & 0xF
         state = self.senders.setdefault(frame_id, SenderState())
+        if self.rate_window_ms > 0 and frame_id in INPUT_IDS:
+            state.recent = [t for t in state.recent if 0 <= tick - t < self.rate_window_ms] + [tick]
+            quarantined = state.quarantine_until is not None and tick < state.quarantine_until
+            if quarantined or len(state.recent) > MAX_FRAMES_PER_WINDOW:
+                if len(state.recent) > MAX_FRAMES_PER_WINDOW:
+                    state.quarantine_until = tick + BABBLE_QUARANTINE_MS
+                state.counter = counter
+                if frame_id in OBSTACLE_IDS and frame_id - OBSTACLE_IDS[0] < self.channels:
+                    self.reports[frame_id - OBSTACLE_IDS[0]] = None
+                self._reject("rate_exceeded")
+                return None
         if state.counter is not None:
             delta = (counter - state.counter) & 0xF
             if delta == 0:

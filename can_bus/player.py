@@ -112,7 +112,7 @@ class Player:
         rng = self.rngs[ch]
         noisy = max(0.0, d + rng.gauss(0.0, sigma)) if sigma > 0 else d
         missed = rng.random() < s.miss_probability or self.active("missed_detection", ch)
-        closing = self.speed - spec.speed_mps
+        closing = (self.speed if self.started else 0.0) - spec.speed_mps
         rep = Report(PRESENT, min(60000, round(noisy * 10)), max(-15000, min(15000, round(closing * 100))),
                      OBSTACLE_TYPES.index(spec.type), tick)
         return rep._replace(status=ABSENT, distance_dm=0) if missed else rep
@@ -213,7 +213,7 @@ class Player:
             "outcome": result,
             "margin_m": None if self.stop_margin is None else round(self.stop_margin, 2),
             "scenario_s": round(self.t, 1),
-            "final_speed_mps": round(self.speed, 3),
+            "final_speed_mps": round(self.speed if self.started else 0.0, 3),
         }
 
 

@@ -34,13 +34,13 @@ class Decision:
     speed_cms: int | None
 
 
-def read_frames(path: str | Path) -> list[tuple[float, int, bytes]]:
+def read_frames(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
     p = Path(path)
     if not p.is_file():
         raise ReplayError(f"{p}: no such file")
     try:
-        frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data)) for m in can.LogReader(str(p))
-                  if not (m.is_error_frame or m.is_remote_frame)]
+        frames = [(float(m.timestamp), int(m.arbitration_id), bytes(m.data), bool(m.is_extended_id))
+                  for m in can.LogReader(str(p)) if not (m.is_error_frame or m.is_remote_frame)]
     except ValueError as exc:
         raise ReplayError(f"{p}: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file, said in one line
@@ -55,7 +55,7 @@ def replay(setup: core.Setup, frames) -> tuple[list[Decision], dict]:
     """Decisions of the core over the frames, and a comparison with recorded BrakeDemands."""
     period = setup.config.period_ms
     t0 = frames[0][0]
-    rx = Receiver(channels=setup.config.channels)
+    rx = Receiver(channels=setup.config.channels, rate_window_ms=period)
     state = core.initial_state(setup)
     decisions: list[Decision] = []
     recorded: list[tuple[int, int]] = []
@@ -64,9 +64,9 @@ def replay(setup: core.Setup, frames) -> tuple[list[Decision], dict]:
     tick = 0
     while tick <= last_tick + period:
         while i < len(frames) and round((frames[i][0] - t0) * 1000) <= tick:
-            ts, fid, data = frames[i]
+            ts, fid, data, extended = frames[i]
             ftick = round((ts - t0) * 1000)
-            if rx.accept(fid, data, ftick) == "BrakeDemand" and fid == BRAKE_DEMAND_ID:
+            if rx.accept(fid, data, ftick, extended) == "BrakeDemand" and fid == BRAKE_DEMAND_ID:
                 recorded.append((ftick, int(rx.demand["Level"])))
             i += 1
         train = rx.train if rx.train_tick is not None and tick - rx.train_tick <= setup.timeout_ticks else None

@@ -47,9 +47,10 @@ class MonitorRunner:
     deadline_misses: int = 0     # total
     frames_received: int = 0
     frames_sent: int = 0
+    send_failures: int = 0
 
     def __post_init__(self) -> None:
-        self.receiver = Receiver(channels=self.setup.config.channels)
+        self.receiver = Receiver(channels=self.setup.config.channels, rate_window_ms=self.setup.config.period_ms)
         self.state = core.initial_state(self.setup)
         self.period = self.setup.config.period_ms
         self.next_tick = self.clock.now_ms()
@@ -72,7 +73,7 @@ class MonitorRunner:
             if msg.is_error_frame or msg.is_remote_frame:
                 self.receiver.rejected["error_or_remote_frame"] += 1
                 continue
-            self.receiver.accept(msg.arbitration_id, msg.data, self.clock.now_ms())
+            self.receiver.accept(msg.arbitration_id, msg.data, self.clock.now_ms(), msg.is_extended_id)
 
     # ------------------------------------------------------------------ one cycle
     def cycle(self) -> Outputs:
@@ -114,7 +115,7 @@ class MonitorRunner:
                 self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False))
                 self.frames_sent += 1
             except can.CanError:
-                self.receiver.rejected["send_failed"] += 1
+                self.send_failures += 1
 
     def send_final_emergency(self) -> None:
         """On shutdown: one last emergency demand, so that silence is never read as 'no brake'."""

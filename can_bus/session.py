@@ -91,6 +91,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "frames_received": runner.frames_received,
         "frames_rejected": runner.receiver.rejected_total,
         "deadline_misses": runner.deadline_misses,
+        "send_failures": runner.send_failures,
         "table": runner.setup.model,
         "table_sha256": runner.setup.table.sha256,
         "log": None if log is None else str(log),

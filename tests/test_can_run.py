@@ -1,0 +1,504 @@
+"""The CAN shell end to end: scenario runs on the in-process virtual bus, determinism, the
+candump recording and its replay, the `run`/`play`/`replay` commands, deadline overruns and
+the last emergency demand on shutdown."""
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import pytest
+
+from can_bus import replay as rp
+from can_bus import scenario as scenarios
+from can_bus import session
+from can_bus.clock import SimClock
+from can_bus.codec import (
+    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver, Sender,
+    report_signals,
+)
+from can_bus.runner import MonitorRunner
+from monitor.cli import main
+from monitor.core import cycle as core
+from monitor.core.config import Config
+from monitor.core.types import (
+    ABSENT, EMERGENCY, INIT, MAINTAIN, PRESENT, R_DEADLINE, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR,
+    SAFE_STOP, Report,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+TABLE_FILES = {"m1": ROOT / "monitor" / "tables" / "m1.table.rgt", "m2": ROOT / "monitor" / "tables" / "m2.table.rgt"}
+SCENARIOS = ("static-obstacle", "no-obstacle", "fault-cascade", "moving-obstacle")
+OUTCOMES = {"stopped", "collision", "no_obstacle", "avoided"}
+_unique = itertools.count()
+
+
+def setup_for(table: str) -> core.Setup:
+    return core.create(Config(), TABLE_FILES[table].read_bytes())
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Every shipped scenario with both shipped tables, run once (no plot) and cached."""
+    cache: dict = {}
+
+    def get(table: str, name: str):
+        key = (table, name)
+        if key not in cache:
+            out = tmp_path_factory.mktemp(f"run-{table}-{name}")
+            cache[key] = session.run_virtual(setup_for(table), scenarios.load(name), out, plot=False)
+        return cache[key]
+
+    return get
+
+
+def emergency_after_init(result) -> int:
+    return sum(1 for r in result.runner.records if r.mode != INIT and r.demand == EMERGENCY)
+
+
+# ----------------------------------------------------------------------------- scenario runs
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_run_invariants(runs, table, name):
+    res = runs(table, name)
+    s, runner = res.summary, res.runner
+    scen = scenarios.load(name)
+    assert s["scenario"] == name and s["table"] == table
+    assert s["outcome"] in OUTCOMES and s["outcome"] != "collision"
+    assert not res.player.collision
+    assert s["deadline_misses"] == 0 == runner.deadline_misses
+    assert s["cycles"] == len(runner.records) > 0
+    assert sum(s["demands"].values()) == s["cycles"]
+    # every frame is either accepted or rejected, and the summary counts the rejections
+    assert runner.frames_received == runner.receiver.accepted + runner.receiver.rejected_total
+    assert s["frames_received"] == runner.frames_received > 0
+    frame_counts = {k: v for k, v in s["faults_detected"].items() if k.startswith("frames_")}
+    assert s["frames_rejected"] == sum(frame_counts.values()) == runner.receiver.rejected_total
+    assert {k[len("frames_"):] for k in frame_counts} <= set(REJECT_REASONS)
+    assert all(v > 0 for v in s["faults_detected"].values())
+    # the player injected every fault of the scenario that falls inside the played time
+    played = res.player.t
+    assert set(s["faults_injected"]) == {f"{f.kind}@ch{f.channel}" for f in scen.faults if f.start_s < played}
+    # ticks advance by one period per cycle from 0
+    assert [r.tick for r in runner.records] == [100 * i for i in range(len(runner.records))]
+    log = Path(s["log"])
+    assert log.is_file() and log.stat().st_size > 0
+    assert s["plot"] is None
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_static_obstacle_stops_before_it(runs, table):
+    res = runs(table, "static-obstacle")
+    s = res.summary
+    assert s["outcome"] == "stopped"
+    assert s["margin_m"] is not None and s["margin_m"] > 0
+    assert s["final_speed_mps"] == 0.0
+    # the train really ran and then stood in front of the obstacle
+    assert max(row.speed_mps for row in res.player.trace) == pytest.approx(30.0)
+    assert s["scenario_s"] == pytest.approx(60.0)
+    # the silent channel (50-54 s) is seen as stale and the brake is demanded
+    assert s["faults_injected"] == ["silence@ch3"]
+    assert s["faults_detected"].get("cycles_stale", 0) > 0
+    silent = [(rec, row) for rec, row in zip(res.runner.records, res.player.trace) if 50.5 <= row.t_s <= 54.0]
+    assert silent and all(rec.reasons & R_STALE and rec.demand == EMERGENCY for rec, _ in silent)
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_no_obstacle_never_brakes(runs, table):
+    res = runs(table, "no-obstacle")
+    s = res.summary
+    assert s["outcome"] == "no_obstacle" and s["margin_m"] is None
+    assert emergency_after_init(res) == 0
+    # "any braking here is false braking" (no-obstacle.toml)
+    assert all(r.demand == MAINTAIN for r in res.runner.records if r.mode != INIT)
+    assert s["faults_detected"] == {} and s["frames_rejected"] == 0
+    assert s["final_speed_mps"] == pytest.approx(30.0) and s["scenario_s"] == pytest.approx(60.0)
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_fault_cascade_detects_the_faults(runs, table):
+    res = runs(table, "fault-cascade")
+    s = res.summary
+    fd = s["faults_detected"]
+    assert fd.get("frames_bad_crc", 0) > 0                 # bad_crc on channel 0
+    assert fd.get("frames_repeated_counter", 0) > 0        # counter_freeze on channel 1
+    assert fd.get("cycles_system_error", 0) > 0
+    assert fd.get("cycles_perceptor", 0) > 0               # contradiction on channel 4
+    assert s["deadline_misses"] == 0
+    assert s["frames_rejected"] == sum(v for k, v in fd.items() if k.startswith("frames_")) > 0
+    assert s["outcome"] in ("stopped", "avoided")
+    assert s["first_emergency_s"] is not None
+    # a perceptor error is a safe stop with an emergency demand
+    perceptor = [r for r in res.runner.records if r.reasons & R_PERCEPTOR]
+    assert perceptor and all(r.mode == SAFE_STOP and r.demand == EMERGENCY for r in perceptor)
+
+
+def _rejections_by_channel(log: Path) -> list[tuple[int, int, str]]:
+    """(tick, channel, reason) of every rejected obstacle frame in a recorded log."""
+    rx = Receiver(rate_window_ms=100)     # as the runner configures it for the 100 ms cycle
+    frames = rp.read_frames(log)
+    t0 = frames[0][0]
+    out = []
+    for ts, fid, data, extended in frames:
+        before = dict(rx.rejected)
+        if rx.accept(fid, data, round((ts - t0) * 1000), extended) is None and fid in OBSTACLE_IDS:
+            reason = next(k for k, v in rx.rejected.items() if v != before.get(k, 0))
+            out.append((round((ts - t0) * 1000), fid - OBSTACLE_IDS[0], reason))
+    return out
+
+
+DIAGNOSTIC = R_STALE | R_SYSTEM_ERROR | R_PERCEPTOR | R_SAFE_STOP
+
+
+@pytest.mark.parametrize("index", range(len(scenarios.load("fault-cascade").faults)),
+                         ids=[f"{f.kind}@ch{f.channel}" for f in scenarios.load("fault-cascade").faults])
+def test_fault_cascade_every_injected_fault_is_detected(runs, index):
+    """fault-cascade.toml: 'Every injected fault kind of the player ... each must be detected'.
+    Detected: a rejected frame of the faulty channel, or a diagnostic reason bit (stale,
+    system error, perceptor, safe stop), while the fault is active or within 1 s after it."""
+    res = runs("m2", "fault-cascade")
+    fault = res.player.scenario.faults[index]
+    assert f"{fault.kind}@ch{fault.channel}" in res.summary["faults_injected"]
+    window = [(rec.tick, rec) for rec, row in zip(res.runner.records, res.player.trace)
+              if fault.start_s <= row.t_s <= fault.end_s + 1.0]
+    assert window
+    ticks = {t for t, _ in window}
+    rejected = [r for t, ch, r in _rejections_by_channel(Path(res.summary["log"])) if ch == fault.channel and t in ticks]
+    flagged = [rec for _, rec in window if rec.reasons & DIAGNOSTIC]
+    assert rejected or flagged, f"{fault.kind} on channel {fault.channel} ({fault.start_s}-{fault.end_s} s) went unnoticed"
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_moving_obstacle_is_played_and_not_hit(runs, table):
+    res = runs(table, "moving-obstacle")
+    s = res.summary
+    assert s["outcome"] in ("stopped", "avoided")
+    assert not res.player.collision
+    # the train enters the section and the scenario is played to its end
+    assert res.player.started, (
+        f"the train never entered the section: demands {s['demands']} over {s['cycles']} cycles, "
+        f"scenario time {s['scenario_s']} s, reported final speed {s['final_speed_mps']} m/s")
+    assert max(row.speed_mps for row in res.player.trace) > 0
+    assert s["scenario_s"] == pytest.approx(90.0)
+
+
+# ----------------------------------------------------------------------------- determinism and replay
+
+def _without_paths(summary: dict) -> dict:
+    return {k: v for k, v in summary.items() if k not in ("log", "plot")}
+
+
+@pytest.mark.parametrize("name", ["static-obstacle", "fault-cascade"])
+def test_runs_are_deterministic(runs, tmp_path, name):
+    first = runs("m2", name)
+    again = session.run_virtual(setup_for("m2"), scenarios.load(name), tmp_path, plot=False)
+    assert _without_paths(again.summary) == _without_paths(first.summary)
+    assert again.summary["log"] != first.summary["log"]
+    a, b = Path(first.summary["log"]).read_bytes(), Path(again.summary["log"]).read_bytes()
+    assert a == b
+    assert [r.__dict__ for r in again.runner.records] == [r.__dict__ for r in first.runner.records]
+
+
+@pytest.mark.parametrize("table,name", [("m2", "static-obstacle"), ("m1", "fault-cascade")])
+def test_recorded_log_replays(runs, table, name):
+    res = runs(table, name)
+    setup = setup_for(table)
+    log = Path(res.summary["log"])
+    frames = rp.read_frames(log)
+    # the recorder wrote every frame of the bus: the player's and the monitor's
+    lines = [ln for ln in log.read_text().splitlines() if ln.strip()]
+    assert len(frames) == len(lines) == res.player.frames_sent + res.runner.frames_sent
+    first, stats1 = rp.replay(setup, frames)
+    second, stats2 = rp.replay(setup, rp.read_frames(log))
+    assert first == second and stats1 == stats2
+    assert stats1["frames"] == len(frames)
+    assert stats1["recorded_demands"] == len(res.runner.records) + 1     # + the final emergency
+    assert stats1["agreement_with_recorded"] >= 0.95
+    # the replay rejects exactly what the live monitor rejected
+    assert stats1["rejected"] == dict(res.runner.receiver.rejected)
+    # and decides exactly as the live monitor did
+    live = [(r.tick, r.demand, r.reasons, r.mode, r.node, r.distance_dm) for r in res.runner.records]
+    replayed = [(d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm) for d in first]
+    assert replayed[: len(live)] == live
+
+
+def test_replay_command_prints_the_decisions(runs, capsys, tmp_path):
+    res = runs("m2", "static-obstacle")
+    log = res.summary["log"]
+    code = main(["replay", log, "--json", "--out", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    lines = [ln for ln in out.splitlines() if ln.strip()]
+    assert len(lines) == 1
+    obj = json.loads(lines[0])
+    decisions, stats = rp.replay(setup_for("m2"), rp.read_frames(log))
+    assert obj["decisions"] == [[d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm] for d in decisions]
+    assert obj["cycles"] == len(decisions)
+    assert obj["agreement_with_recorded"] == stats["agreement_with_recorded"]
+    assert Path(obj["plot"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_replay_text_output(runs, capsys, tmp_path):
+    log = runs("m2", "static-obstacle").summary["log"]
+    code = main(["replay", log, "--no-plot", "--out", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "agreement with the recorded BrakeDemand frames" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- CLI
+
+RUN_KEYS = {"outcome", "margin_m", "demands", "faults_detected", "frames_received", "frames_rejected",
+            "deadline_misses", "log", "plot"}
+
+
+def test_run_command_json(capsys, tmp_path):
+    code = main(["run", "--json", "--out", str(tmp_path), "--quiet"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    lines = [ln for ln in out.splitlines() if ln.strip()]
+    assert len(lines) == 1, out
+    obj = json.loads(lines[0])
+    assert RUN_KEYS <= set(obj)
+    assert obj["outcome"] in OUTCOMES
+    assert obj["outcome"] == "stopped" and obj["margin_m"] > 0           # default: static-obstacle
+    assert obj["scenario"] == "static-obstacle" and obj["table"] == "m2"
+    assert obj["deadline_misses"] == 0
+    assert set(obj["demands"]) == {"none", "service", "emergency"}
+    log, plot = Path(obj["log"]), Path(obj["plot"])
+    assert log.parent == tmp_path and plot.parent == tmp_path
+    assert log.is_file() and log.stat().st_size > 0
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "Traceback" not in err
+
+
+def _clean_env() -> dict:
+    """No python-can configuration from the environment: no bus is named."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env
+
+
+def _assert_one_line_error(code, err):
+    assert code == 2, err
+    assert "Traceback" not in err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("railguard: error: ") and len(lines[0]) > len("railguard: error: ")
+
+
+def _bad_scenario(tmp_path: Path) -> Path:
+    p = tmp_path / "bad.toml"
+    p.write_text('duration_s = 10.0\n[train]\nspeed_mps = 10.0\nwheels = 8\n')
+    return p
+
+
+def _not_a_log(tmp_path: Path) -> str:
+    return "/etc/hostname" if Path("/etc/hostname").is_file() else str(_write(tmp_path / "hostname", "myhost\n"))
+
+
+def _write(p: Path, text: str) -> Path:
+    p.write_text(text)
+    return p
+
+
+ERROR_CASES = {
+    "unknown-scenario": lambda tmp: ["run", "--scenario", "nope", "--out", str(tmp)],
+    "missing-table": lambda tmp: ["run", "--table", "/nonexistent", "--out", str(tmp)],
+    "replay-not-a-log": lambda tmp: ["replay", _not_a_log(tmp), "--out", str(tmp)],
+    "replay-garbage-log": lambda tmp: ["replay", str(_write(tmp / "junk.log", "hello world\n(x) y z\n")),
+                                       "--out", str(tmp)],
+    "play-without-bus": lambda tmp: ["play", "static-obstacle"],
+    "scenario-unknown-key": lambda tmp: ["run", "--scenario", str(_bad_scenario(tmp)), "--out", str(tmp)],
+}
+
+
+@pytest.mark.parametrize("case", ["unknown-scenario", "missing-table", "replay-garbage-log", "scenario-unknown-key"])
+def test_user_errors_in_process(capsys, tmp_path, monkeypatch, case):
+    for k in [k for k in os.environ if k.startswith("CAN_")]:
+        monkeypatch.delenv(k)
+    code = main(ERROR_CASES[case](tmp_path))
+    out, err = capsys.readouterr()
+    _assert_one_line_error(code, err)
+    assert out == ""
+    if case == "scenario-unknown-key":
+        assert "wheels" in err
+    if case == "unknown-scenario":
+        assert "nope" in err
+    assert not list(tmp_path.glob("run-*")), "nothing is written on a refused run"
+
+
+@pytest.mark.parametrize("case", ["play-without-bus", "replay-not-a-log", "scenario-unknown-key"])
+def test_user_errors_in_a_subprocess(tmp_path, case):
+    proc = subprocess.run([sys.executable, "-m", "monitor.cli", *ERROR_CASES[case](tmp_path)],
+                          capture_output=True, text=True, timeout=60, env=_clean_env(), cwd=str(tmp_path))
+    _assert_one_line_error(proc.returncode, proc.stderr)
+    assert proc.stdout == ""
+
+
+# ----------------------------------------------------------------------------- deadline overruns
+
+class JumpingClock:
+    """Simulated clock that is on time for the first `steady` readings, then jumps 250 ms
+    forward on every reading: every cycle from then on ends after its deadline."""
+
+    simulated = True
+
+    def __init__(self, steady: int = 2) -> None:
+        self.steady = steady
+        self.calls = 0
+        self.t = 0
+
+    def now_ms(self) -> int:
+        self.calls += 1
+        if self.calls > self.steady:
+            self.t += 250
+        return self.t
+
+    def now_s(self) -> float:
+        return self.t / 1000
+
+    def sleep_until_ms(self, tick: int) -> None:
+        pass
+
+
+def virtual_pair():
+    channel = f"t-{os.getpid()}-{next(_unique)}"
+    return (can.Bus(interface="virtual", channel=channel, receive_own_messages=False),
+            can.Bus(interface="virtual", channel=channel, receive_own_messages=False))
+
+
+def received(bus) -> list:
+    out = []
+    while True:
+        msg = bus.recv(timeout=0.0)
+        if msg is None:
+            return out
+        out.append(msg)
+
+
+def test_deadline_overruns_lead_to_safe_stop():
+    setup = setup_for("m2")
+    max_overruns = setup.config.max_overruns
+    mon_bus, listener = virtual_pair()
+    try:
+        runner = MonitorRunner(mon_bus, setup, JumpingClock())
+        runner.run(cycles=22)
+        frames = received(listener)
+    finally:
+        mon_bus.shutdown()
+        listener.shutdown()
+    recs = runner.records
+    assert len(recs) == 22
+    # cycle 0 ends on time; every later cycle overruns
+    assert runner.deadline_misses == 21 and runner.overruns == 21
+    for k, rec in enumerate(recs):
+        consecutive_before = max(0, k - 1)
+        if consecutive_before >= max_overruns:
+            assert rec.mode == SAFE_STOP, k
+            assert rec.reasons & R_DEADLINE and rec.reasons & R_SAFE_STOP, k
+            assert rec.demand == EMERGENCY, k
+        else:
+            assert not rec.reasons & R_DEADLINE, k
+            assert rec.mode != SAFE_STOP, k
+    # what went on the bus: two valid E2E frames per cycle, in order
+    rx = Receiver()
+    assert len(frames) == 2 * len(recs)
+    demands, statuses = [], []
+    for msg in frames:
+        assert not msg.is_extended_id and len(msg.data) == 8
+        name = rx.accept(msg.arbitration_id, msg.data, 0)
+        assert name in ("BrakeDemand", "MonitorStatus"), dict(rx.rejected)
+        (demands if name == "BrakeDemand" else statuses).append(dict(rx.demand if name == "BrakeDemand" else rx.status))
+    assert [f.arbitration_id for f in frames[:2]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID]
+    assert len(demands) == len(statuses) == len(recs)
+    for k, (dem, st, rec) in enumerate(zip(demands, statuses, recs)):
+        assert dem["Level"] == rec.demand and dem["Reason"] == rec.reasons and st["Mode"] == rec.mode, k
+        # DeadlineMisses counts the misses so far (this cycle's own overrun is known only after it)
+        assert st["DeadlineMisses"] == min(15, max(0, k - 1)), k
+        if k - 1 >= max_overruns:
+            assert st["Mode"] == SAFE_STOP and dem["Reason"] & R_DEADLINE and dem["Level"] == EMERGENCY, k
+    assert statuses[-1]["DeadlineMisses"] == 15                      # saturates
+
+
+def test_no_overrun_on_time():
+    setup = setup_for("m2")
+    mon_bus, listener = virtual_pair()
+    try:
+        runner = MonitorRunner(mon_bus, setup, SimClock())
+        runner.run(cycles=5)
+        frames = received(listener)
+    finally:
+        mon_bus.shutdown()
+        listener.shutdown()
+    assert runner.deadline_misses == 0
+    rx = Receiver()
+    for msg in frames:
+        rx.accept(msg.arbitration_id, msg.data, 0)
+    assert rx.status["DeadlineMisses"] == 0
+    assert all(not r.reasons & R_DEADLINE for r in runner.records)
+
+
+# ----------------------------------------------------------------------------- shutdown and foreign frames
+
+def _feed_healthy(bus, sender: Sender) -> None:
+    absent = Report(ABSENT, 0, 0, 0, 0)
+    for ch in range(6):
+        fid = OBSTACLE_IDS[ch]
+        bus.send(can.Message(arbitration_id=fid, data=sender.frame(fid, report_signals(absent, ch)), is_extended_id=False))
+    bus.send(can.Message(arbitration_id=TRAIN_STATE_ID, data=sender.frame(TRAIN_STATE_ID, {"Speed": 0}),
+                         is_extended_id=False))
+
+
+def test_final_emergency_on_shutdown():
+    setup = setup_for("m2")
+    mon_bus, other = virtual_pair()
+    try:
+        clock = SimClock()
+        runner = MonitorRunner(mon_bus, setup, clock)
+        sender = Sender()
+        for tick in range(0, 500, 100):
+            clock.sleep_until_ms(tick)
+            _feed_healthy(other, sender)
+            runner.drain()
+            runner.cycle()
+        assert runner.records[-1].demand == MAINTAIN and runner.records[-1].mode != SAFE_STOP
+        rx = Receiver()
+        for msg in received(other):
+            assert rx.accept(msg.arbitration_id, msg.data, 0)
+        assert rx.demand["Level"] == MAINTAIN
+        runner.send_final_emergency()
+        last = received(other)
+    finally:
+        mon_bus.shutdown()
+        other.shutdown()
+    assert [m.arbitration_id for m in last] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID]
+    # valid E2E frames with the next counters, so a receiver takes them
+    assert rx.accept(last[0].arbitration_id, last[0].data, 1) == "BrakeDemand"
+    assert rx.demand["Level"] == EMERGENCY and rx.demand["Reason"] & R_SAFE_STOP
+    assert rx.accept(last[1].arbitration_id, last[1].data, 1) == "MonitorStatus"
+    assert rx.status["Mode"] == SAFE_STOP
+
+
+def test_extended_id_frame_is_not_a_standard_report():
+    """The DBC's messages are 11-bit frames. A 29-bit frame with arbitration ID 0x20 is a different
+    CAN identifier and must not be latched as ObstacleReport_M1C1."""
+    setup = setup_for("m2")
+    mon_bus, other = virtual_pair()
+    try:
+        runner = MonitorRunner(mon_bus, setup, SimClock())
+        data = Sender().frame(0x20, report_signals(Report(PRESENT, 500, 0, 0, 0), 0))
+        other.send(can.Message(arbitration_id=0x20, data=data, is_extended_id=True))
+        runner.drain()
+    finally:
+        mon_bus.shutdown()
+        other.shutdown()
+    assert runner.frames_received == 1
+    assert runner.receiver.reports[0] is None, "an extended-ID frame was latched as channel 0's report"
+    assert runner.receiver.accepted == 0 and runner.receiver.rejected_total == 1
