@@ -8,7 +8,6 @@ demands are compared with the recorded ones.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import can
@@ -17,21 +16,14 @@ from monitor.core import cycle as core
 from monitor.core.types import Inputs
 
 from .codec import BRAKE_DEMAND_ID, Receiver
+from .runner import CycleRecord
 
 
 class ReplayError(ValueError):
     """A log that cannot be replayed (unreadable, unknown format, empty)."""
 
 
-@dataclass
-class Decision:
-    tick: int
-    demand: int
-    reasons: int
-    mode: int
-    node: int
-    distance_dm: int
-    speed_cms: int | None
+Decision = CycleRecord  # a replayed cycle is recorded exactly like a live one
 
 
 def read_frames(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
@@ -51,13 +43,13 @@ def read_frames(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
     return frames
 
 
-def replay(setup: core.Setup, frames) -> tuple[list[Decision], dict]:
+def replay(setup: core.Setup, frames) -> tuple[list[CycleRecord], dict]:
     """Decisions of the core over the frames, and a comparison with recorded BrakeDemands."""
     period = setup.config.period_ms
     t0 = frames[0][0]
     rx = Receiver(channels=setup.config.channels, rate_window_ms=period)
     state = core.initial_state(setup)
-    decisions: list[Decision] = []
+    decisions: list[CycleRecord] = []
     recorded: list[tuple[int, int]] = []
     i = 0
     last_tick = round((frames[-1][0] - t0) * 1000)
@@ -71,8 +63,8 @@ def replay(setup: core.Setup, frames) -> tuple[list[Decision], dict]:
             i += 1
         train = rx.train if rx.train_tick is not None and tick - rx.train_tick <= setup.timeout_ticks else None
         state, out = core.step(setup, state, Inputs(tuple(rx.reports), train, 0), tick)
-        decisions.append(Decision(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
-                                  None if train is None else train.speed_cms))
+        decisions.append(CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
+                                     out.module_flags, out.system_error, None if train is None else train.speed_cms))
         tick += period
     stats = {"frames": len(frames), "accepted": rx.accepted, "rejected": dict(rx.rejected),
              "recorded_demands": len(recorded)}
