@@ -60,7 +60,6 @@ class Player:
         self.stop_margin: Optional[float] = None
         self.history: deque = deque(maxlen=STALE_REPORT_PERIODS + 1)
         self.frozen: dict = {}
-        self.jump = [0] * 6
 
     # ------------------------------------------------------------------ world
     def obstacle_distance(self) -> Optional[tuple[float, object]]:

@@ -121,7 +121,7 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
 
 
 def status_line(rec, player: Optional[Player]) -> str:
-    speed = f"{player.speed:5.1f} m/s" if player is not None else (
+    speed = f"{(player.speed if player.started else 0.0):5.1f} m/s" if player is not None else (
         "   -     " if rec.speed_cms is None else f"{rec.speed_cms / 100:5.1f} m/s")
     dist = "   none " if rec.distance_dm == NO_DISTANCE else f"{rec.distance_dm / 10:7.1f}"
     return (f"t {rec.tick / 1000:7.1f} s  speed {speed}  voted distance {dist} m  "
