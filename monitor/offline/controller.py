@@ -346,12 +346,16 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
     say = progress or (lambda text: None)
     naive = follow_witnesses(model, sol)
     naive_V = evaluate(model, naive)
-    best = (value_at(model, naive, naive_V), naive, naive_V)
-    say(f"compile: witness controller, {naive.nodes} nodes, exact value {best[0]:.4f}")
+    naive_value = value_at(model, naive, naive_V)
+    say(f"compile: witness controller, {naive.nodes} nodes, exact value {naive_value:.4f}")
     ctrl, V = settle(model, naive, max_nodes)
-    say(f"compile: re-pointed within {max_nodes} nodes: {ctrl.nodes} nodes, exact value {value_at(model, ctrl, V):.4f}")
-    if value_at(model, ctrl, V) > best[0]:
-        best = (value_at(model, ctrl, V), ctrl, V)
+    best = (value_at(model, ctrl, V), ctrl, V)
+    say(f"compile: re-pointed within {max_nodes} nodes: {ctrl.nodes} nodes, exact value {best[0]:.4f}")
+    if naive.nodes <= max_nodes and naive_value > best[0]:
+        # pruning and merging keep the value exactly: the witness controller, tidied, is the start
+        tidy = minimise(reachable(naive))
+        tidy_V = evaluate(model, tidy)
+        best = (value_at(model, tidy, tidy_V), tidy, tidy_V)
     done = 0
     for done in range(1, rounds + 1):
         ctrl, V = best[1], best[2]
@@ -361,14 +365,12 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
             break
         cand, cand_V = settle(model, grown, max_nodes)
         value = value_at(model, cand, cand_V)
+        gained = value > best[0] + 1e-9 * max(1.0, abs(best[0]))
         say(f"compile: round {done}, {added} nodes added, {cand.nodes} kept, exact value {value:.4f}"
-            + ("" if value > best[0] + 1e-9 * max(1.0, abs(best[0])) else " (no gain, stop)"))
-        if value <= best[0] + 1e-9 * max(1.0, abs(best[0])):
+            + ("" if gained else " (no gain, stop)"))
+        if not gained:
             break
         best = (value, cand, cand_V)
     value, ctrl, V = best
-    if ctrl.nodes > max_nodes or ctrl.start != 0:
-        ctrl, V = settle(model, ctrl, max_nodes)
-        value = value_at(model, ctrl, V)
     say(f"compile: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
-    return Compiled(replace(ctrl, beliefs=None), V, value, value_at(model, naive, naive_V), done)
+    return Compiled(replace(ctrl, beliefs=None), V, value, naive_value, done)
