@@ -61,20 +61,23 @@ def test_monitor_exits_cleanly_and_saw_the_fault(session):
 def test_recorded_brake_demands_decode_and_tell_the_story(session):
     msg = database().get_message_by_frame_id(BRAKE_DEMAND_ID)
     demands = frames(session / "bus.log", BRAKE_DEMAND_ID)
-    assert len(demands) >= 200                                          # >= 20 s of 100 ms cycles
+    levels = "".join(str(msg.decode(bytes(m.data), decode_choices=False)["Level"]) for m in demands)
+    context = f"{len(demands)} BrakeDemand frames, levels {levels}"
+    assert len(demands) >= 200, context                                 # >= 20 s of 100 ms cycles
     assert all(check_profile2_crc(bytes(m.data), BRAKE_DEMAND_ID & 0xFF) for m in demands)
     decoded = [msg.decode(bytes(m.data), decode_choices=False) for m in demands]
     counters = [d["Counter"] for d in decoded]
-    assert all((b - a) % 16 == 1 for a, b in zip(counters, counters[1:])), "alive counter must step by one"
+    gaps = [(i, a, b) for i, (a, b) in enumerate(zip(counters, counters[1:])) if (b - a) % 16 != 1]
+    assert not gaps, f"alive counter must step by one: {gaps[:5]}; {context}"
     # while the train approaches, the table or the envelope demands emergency braking
     obstacle = [d for d in decoded if d["Level"] == 2 and d["Reason"] & (R_TABLE | R_ENVELOPE)]
-    assert obstacle, "no emergency demand caused by the obstacle"
+    assert obstacle, f"no emergency demand caused by the obstacle; {context}"
     # the silent channel is detected: emergency for a stale channel / system error
     fault = [d for d in decoded if d["Level"] == 2 and d["Reason"] & R_STALE and d["Reason"] & R_SYSTEM_ERROR]
-    assert len(fault) >= 10
-    assert decoded.index(obstacle[0]) < decoded.index(fault[-1])
+    assert len(fault) >= 10, f"{len(fault)} fault frames; {context}"
+    assert decoded.index(obstacle[0]) < decoded.index(fault[-1]), context
     # SIGTERM: the last word of the monitor is an emergency demand
-    assert decoded[-1]["Level"] == 2
+    assert decoded[-1]["Level"] == 2, f"last frame {decoded[-1]}; {context}"
 
 
 def test_monitor_status_carries_the_table_hash(session):
