@@ -23,6 +23,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -96,6 +97,36 @@ halt -f
 """
 
 
+def group_members(pgid: int) -> list[int]:
+    """Live (not zombie) processes of process group `pgid`, read from /proc."""
+    members = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue
+        fields = text[text.rfind(")") + 2:].split()
+        if len(fields) > 2 and fields[2] == str(pgid) and fields[0] != "Z":
+            members.append(int(stat.parent.name))
+    return members
+
+
+def kill_group(pgid: int, grace: float = 10.0) -> None:
+    """SIGKILL the kernel's process group and wait until none of it runs any more.
+
+    A killed UML kernel and its helper processes take a moment to tear down their
+    memory; returning before that leaves running processes behind (seen in CI)."""
+    deadline = time.monotonic() + grace
+    while True:
+        try:
+            os.killpg(pgid, signal.SIGKILL)
+        except ProcessLookupError:
+            return
+        if not group_members(pgid) or time.monotonic() > deadline:
+            return
+        time.sleep(0.05)
+
+
 def run(command: list[str], timeout: float = 120.0, cwd: str | Path | None = None, mem_mb: int = 1024,
         env: dict | None = None) -> VcanResult:
     """Boot the sandbox, run `command` with vcan0 up, return its exit code and output."""
@@ -127,10 +158,7 @@ def run(command: list[str], timeout: float = 120.0, cwd: str | Path | None = Non
             except subprocess.TimeoutExpired:
                 timed_out = True
             finally:
-                try:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
+                kill_group(proc.pid)
                 proc.wait()
 
         def read(name: str) -> str:
