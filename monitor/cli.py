@@ -37,6 +37,14 @@ def _user_errors() -> tuple[type[BaseException], ...]:
         errors += [ScenarioError, ReplayError, can.CanError]
     except ImportError:  # the CAN shell is optional for the offline commands
         pass
+    try:
+        from fmu.build import BuildError
+        from fmu.cosim import CosimError
+        from fmu.scenario import CosimScenarioError
+
+        errors += [BuildError, CosimError, CosimScenarioError]
+    except ImportError:  # the FMU shell is optional too
+        pass
     return tuple(errors)
 
 
@@ -120,15 +128,12 @@ def cmd_table_show(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- CAN commands
 
 def _table_bytes(spec: str) -> bytes:
-    """A shipped table by model name (m1, m2) or a table file path."""
-    from importlib import resources
+    from .tables import TableNotFound, read
 
-    if spec in ("m1", "m2"):
-        return resources.files("monitor.tables").joinpath(f"{spec}.table.rgt").read_bytes()
     try:
-        return Path(spec).read_bytes()
-    except OSError as exc:
-        raise UserError(f"{spec}: cannot read table: {exc.strerror or exc}") from None
+        return read(spec)
+    except TableNotFound as exc:
+        raise UserError(str(exc)) from None
 
 
 def _monitor_setup(args: argparse.Namespace):
@@ -302,6 +307,64 @@ def _positive_int(text: str) -> int:
     return value
 
 
+# ----------------------------------------------------------------------------- FMU commands
+
+def cmd_build_fmu(args: argparse.Namespace) -> int:
+    from fmu import build
+
+    if args.ssp is not None:
+        from fmu import scenario, ssp
+
+        scen = scenario.load(args.ssp or None)
+        out = Path(args.out)
+        monitor_fmu = build.build_monitor(_table_bytes(scen.table), 2, out)
+        train_fmu = build.build_train(out)
+        path = ssp.write(out / f"railguard-{scen.name}.ssp", train_fmu, monitor_fmu, scen.train, scen.monitor,
+                         scen.duration_s, name=f"railguard-{scen.name}")
+    elif args.train:
+        path = build.build_train(args.out)
+    else:
+        path = build.build_monitor(_table_bytes(args.model), args.fmi, args.out)
+    print(path)
+    return 0
+
+
+def cmd_cosim(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from fmu import build, cosim, scenario
+
+    scen = scenario.load(args.scenario)
+    out = Path(args.out)
+    with tempfile.TemporaryDirectory(prefix="railguard-cosim-") as tmp:
+        monitor_fmu = args.monitor_fmu or build.build_monitor(_table_bytes(args.table or scen.table), args.fmi, tmp)
+        train_fmu = args.train_fmu or build.build_train(tmp)
+        result = cosim.run(monitor_fmu, train_fmu, scen.train, scen.monitor, scen.duration_s, args.step)
+    csv_path = cosim.write_csv(result, out / f"cosim-{scen.name}.csv")
+    plot_path = None if args.no_plot else cosim.plot(result, out / f"cosim-{scen.name}.png",
+                                                      f"railguard co-simulation: {scen.name}")
+    summary = {
+        "scenario": scen.name, "outcome": result.outcome,
+        "margin_m": None if result.margin_m is None else round(result.margin_m, 3),
+        "steps": result.steps, "monitor_cycles": result.monitor_cycles, "step_s": args.step,
+        "simulated_s": round(result.simulated_s, 3), "wall_s": round(result.wall_s, 4),
+        "realtime_factor": round(result.realtime_factor, 1),
+        "first_brake_s": result.first_brake_s, "max_demand": result.max_demand,
+        "csv": str(csv_path), "plot": None if plot_path is None else str(plot_path),
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        margin = "" if result.margin_m is None else f", margin {result.margin_m:.1f} m"
+        brake = "never braked" if result.first_brake_s is None else f"first brake demand at {result.first_brake_s:.1f} s"
+        print(f"{scen.name}: {result.outcome}{margin}; {brake}; {result.steps} steps of {args.step * 1000:g} ms "
+              f"({result.monitor_cycles} monitor cycles) in {result.wall_s:.2f} s = {result.realtime_factor:,.0f}x real time")
+        print(f"csv:  {csv_path}")
+        if plot_path:
+            print(f"plot: {plot_path}")
+    return 0
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -407,6 +470,46 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--no-plot", action="store_true", help="do not draw the plot")
     rp.add_argument("--json", action="store_true", help="print every decision as JSON")
     rp.set_defaults(func=cmd_replay)
+
+    b = sub.add_parser(
+        "build-fmu",
+        help="build the monitor (or the train-dynamics) FMU and print its path",
+        description="Generate the C core with the policy table compiled in, wrap it as an FMI 2.0 or 3.0 "
+                    "Co-Simulation FMU with its sources and the linux64 binary (gcc -std=c99 -Wall -Wextra "
+                    "-Werror -pedantic), and print the path of the .fmu written.",
+    )
+    b.add_argument("--model", default="m1", metavar="m1|m2|FILE",
+                   help="policy table: shipped m1 or m2, or a .table.rgt file (default: %(default)s)")
+    b.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="FMI version (default: %(default)s)")
+    b.add_argument("--train", action="store_true", help="build the train-dynamics FMU (FMI 2.0) instead")
+    b.add_argument("--ssp", nargs="?", const="", metavar="SCENARIO",
+                   help="build both FMUs and the SSP of the closed loop for a cosim scenario (default: "
+                        "static-obstacle); runs with fmpy.ssp.simulate_ssp at a 0.1 s step")
+    b.add_argument("--out", default=".", metavar="DIR", help="output folder (default: the current one)")
+    b.set_defaults(func=cmd_build_fmu)
+
+    c = sub.add_parser(
+        "cosim",
+        help="co-simulate the train-dynamics FMU and the monitor FMU in FMPy",
+        description="Build both FMUs (unless given), close the loop in FMPy with a master over FMPy's slave "
+                    "classes (train every --step, monitor every 100 ms), write a CSV of all signals and a plot, "
+                    "and print the outcome and the speed as a real-time factor.",
+        epilog="Shipped scenarios: static-obstacle (default), moving-obstacle, no-obstacle, and one per "
+               "single fault: fault-silence, fault-stuck, fault-noise-burst, fault-missed-detection, "
+               "fault-degraded, fault-nan-distance, fault-contradiction. See docs/fmu.md.",
+    )
+    c.add_argument("scenario", nargs="?", default=None, metavar="SCENARIO",
+                   help="a shipped scenario name or a .toml file (default: static-obstacle)")
+    c.add_argument("--table", metavar="m1|m2|FILE", help="policy table (default: the scenario's)")
+    c.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="FMI version of the monitor FMU (default: %(default)s)")
+    c.add_argument("--step", type=_positive_float, default=0.01, metavar="S",
+                   help="communication step of the train FMU; must divide 0.1 s (default: %(default)s)")
+    c.add_argument("--monitor-fmu", metavar="FILE", help="use this monitor FMU instead of building one")
+    c.add_argument("--train-fmu", metavar="FILE", help="use this train FMU instead of building one")
+    c.add_argument("--out", default="railguard-out", metavar="DIR", help="folder for the CSV and the plot (default: %(default)s)")
+    c.add_argument("--no-plot", action="store_true", help="do not draw the plot")
+    c.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
+    c.set_defaults(func=cmd_cosim)
     return parser
 
 

@@ -76,3 +76,24 @@ def m2():
     from monitor.offline.models import load
 
     return load("m2")
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("fmus")
+
+
+@pytest.fixture(scope="session")
+def monitor_fmus(fmu_dir) -> dict:
+    """Monitor FMUs built from the shipped tables: {(model, fmi): path}."""
+    from fmu.build import build_monitor
+    from monitor.tables import read
+
+    return {(m, v): build_monitor(read(m), v, fmu_dir) for m, v in (("m1", 2), ("m2", 2), ("m1", 3))}
+
+
+@pytest.fixture(scope="session")
+def train_fmu(fmu_dir) -> Path:
+    from fmu.build import build_train
+
+    return build_train(fmu_dir)

@@ -16,7 +16,7 @@ from .freshness import channel_status
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .table import Table, TableError, decode
 from .types import (
-    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_SPEED_CMS, NO_DISTANCE, NORMAL,
+    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NORMAL,
     PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, SAFE_STOP, STATIC, Inputs, Outputs, State,
 )
@@ -74,16 +74,21 @@ def _train(train) -> tuple[int, int, int, bool]:
     return MAX_SPEED_CMS, 1, 1, False
 
 
+def _inc(count: int) -> int:
+    """count + 1, saturating at MAX_COUNT as the C core's 32-bit counters do."""
+    return count + 1 if count < MAX_COUNT else MAX_COUNT
+
+
 def step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
     """One cycle. Total: whatever the inputs, it returns a state and outputs; if anything
     unforeseen went wrong inside, the result is SAFE_STOP with an emergency demand."""
     try:
         return _step(setup, state, inputs, tick)
     except Exception:  # noqa: BLE001 - the monitor must never stop; fail to the safe side
+        cycle, errors = _inc(state.cycle), _inc(state.error_cycles)
         out = Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, state.node,
-                      SAFE_STOP, 0, True, 0, state.cycle + 1, state.error_cycles + 1)
-        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=state.cycle + 1,
-                              error_cycles=state.error_cycles + 1), out
+                      SAFE_STOP, 0, True, 0, cycle, errors)
+        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=cycle, error_cycles=errors), out
 
 
 def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
@@ -122,7 +127,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         results.append(res)
         if res[2]:
             flags |= 1 << m
-        count = state.disagree[m] + 1 if disagreement(sa, sb) else 0
+        count = _inc(state.disagree[m]) if disagreement(sa, sb) else 0
         disagree.append(count)
         if count >= cfg.persistence_cycles:
             perceptor = True
@@ -154,7 +159,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # modes
     error = sys_error or not train_ok
     overrun_limit = inputs.overruns >= cfg.max_overruns
-    healthy = 0 if (error or stale or perceptor or overrun_limit) else state.healthy + 1
+    healthy = 0 if (error or stale or perceptor or overrun_limit) else _inc(state.healthy)
     mode = state.mode
     if perceptor or overrun_limit:
         mode = SAFE_STOP
@@ -200,9 +205,10 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     if latched and state.latched:
         reasons |= R_LATCH
 
-    error_cycles = state.error_cycles + (1 if error or stale else 0)
-    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, state.cycle + 1, error_cycles)
-    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, state.cycle + 1, error_cycles)
+    error_cycles = _inc(state.error_cycles) if error or stale else state.error_cycles
+    cycle = _inc(state.cycle)
+    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, cycle, error_cycles)
+    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles)
     return new_state, out
 
 

@@ -43,6 +43,7 @@ MAX_CLOSING_CMS = 15000      # |closing speed| up to 150 m/s
 MAX_SPEED_CMS = 12000        # 432 km/h
 MAX_TICK = (1 << 62) - 1
 NO_DISTANCE = 65535          # no obstacle distance to report
+MAX_COUNT = (1 << 31) - 1    # counters saturate here (32-bit FMI Integer outputs, the C core)
 
 
 class Report(NamedTuple):

@@ -1,0 +1,143 @@
+"""Build the FMUs: generate the sources, compile the linux64 binary with gcc, zip.
+
+    build_monitor(table_bytes, fmi=2|3, out_dir) -> path of railguard-monitor-<model>-fmi<n>.fmu
+    build_train(out_dir)                           -> path of railguard-train-fmi2.fmu
+
+Each FMU carries its C sources (with the FMI 3.0 buildDescription.xml) so that others can
+compile it for their platform; the binary is built with -std=c99 -Wall -Wextra -Werror
+-pedantic, so a warning is a build failure. Builds are deterministic: the same table and
+sources give the same modelDescription and the same sources in the archive.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+import zipfile
+from pathlib import Path
+
+from monitor.core.table import TableError, decode
+
+from . import generate
+from .variables import MONITOR, TRAIN
+
+C_DIR = Path(__file__).resolve().parent / "c"
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2", "-fPIC"]
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+TRAIN_TOKEN = "{8c4e810f-3df3-4a00-8276-176fa00ae0b6}"
+MONITOR_ID = "railguard_monitor"
+TRAIN_ID = "railguard_train"
+CORE_SOURCES = ["rg_core.c", "rg_sha256.c"]
+CORE_HEADERS = ["rg_core.h", "rg_sha256.h"]
+
+
+class BuildError(RuntimeError):
+    """The FMU could not be built; the message says why (compiler output included)."""
+
+
+def fmi_include_dir() -> Path:
+    import fmpy
+
+    return Path(fmpy.__file__).resolve().parent / "c-code"
+
+
+def compiler() -> str:
+    cc = os.environ.get("CC", "gcc")
+    if shutil.which(cc) is None:
+        raise BuildError(f"no C compiler: {cc!r} not found (install gcc, or set CC)")
+    return cc
+
+
+def compile_binary(sources_dir: Path, files: list[str], output: Path, defines: list[str] = ()) -> None:
+    """gcc the flat source folder into a shared library; warnings are errors."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [compiler(), *CFLAGS, "-shared", *(f"-D{d}" for d in defines), f"-I{fmi_include_dir()}",
+           f"-I{sources_dir}", *(str(sources_dir / f) for f in files), "-o", str(output), "-lm"]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        raise BuildError(f"compiling {output.name} failed:\n{res.stderr.strip()}")
+
+
+def _zip(folder: Path, target: Path) -> Path:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_suffix(".fmu.part")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                info = zipfile.ZipInfo(path.relative_to(folder).as_posix(), date_time=(2026, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = 0o644 << 16
+                zf.writestr(info, path.read_bytes())
+    tmp.replace(target)
+    return target
+
+
+def _stage(folder: Path, model: str, variables, extra: dict[str, str], core: bool) -> list[str]:
+    """Copy the core, the FMI wrapper contract and the model into folder/sources; write the
+    generated files. Returns the list of .c files."""
+    src = folder / "sources"
+    src.mkdir(parents=True)
+    for name in (CORE_SOURCES + CORE_HEADERS) if core else ():
+        shutil.copy(C_DIR / "core" / name, src / name)
+    shutil.copy(C_DIR / "fmi" / "model.h", src / "model.h")
+    for path in sorted((C_DIR / model).glob("*.[ch]")):
+        shutil.copy(path, src / path.name)
+    (src / "variables.h").write_text(generate.variables_header(variables))
+    (src / "variables.c").write_text(generate.variables_source(variables))
+    for name, text in extra.items():
+        (src / name).write_text(text)
+    return sorted(p.name for p in src.glob("*.c"))
+
+
+def _finish(folder: Path, identifier: str, fmi: int, c_files: list[str], description: str, out: Path) -> Path:
+    src = folder / "sources"
+    wrapper = f"fmi{fmi}.c"
+    shutil.copy(C_DIR / "fmi" / wrapper, src / wrapper)
+    files = sorted(c_files + [wrapper])
+    if fmi == 3:
+        (src / "buildDescription.xml").write_text(generate.build_description_fmi3(identifier, files))
+    (folder / "modelDescription.xml").write_text(description)
+    compile_binary(src, files, folder / "binaries" / PLATFORM[fmi] / f"{identifier}.so",
+                   defines=["DISABLE_PREFIX"] if fmi == 3 else [])
+    return _zip(folder, out)
+
+
+def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: str | None = None) -> Path:
+    """The monitor FMU for the table `data` (the bytes of a .rgt file)."""
+    if fmi not in (2, 3):
+        raise BuildError(f"FMI version {fmi} is not supported (2 or 3)")
+    try:
+        table = decode(data)
+    except TableError as exc:
+        raise BuildError(f"table refused: {exc}") from None
+    if table.model not in ("m1", "m2"):
+        raise BuildError(f"table is for model {table.model!r}; the monitor FMU runs m1 or m2 tables")
+    tok = generate.token(MONITOR_ID, str(fmi), table.sha256, generate.variables_signature(MONITOR))
+    starts = {"table.model": table.model, "table.sha256": table.sha256, "table.nodes": table.nodes, "node": table.start}
+    description = (f"railguard anti-collision monitor, policy table {table.model} ({table.nodes} nodes, "
+                   f"sha256 {table.sha256[:12]}), 2oo2/3oo3 voting, 100 ms cycle")
+    out = Path(out_dir) / (name or f"railguard-monitor-{table.model}-fmi{fmi}.fmu")
+    with tempfile.TemporaryDirectory(prefix="railguard-fmu-") as tmp:
+        folder = Path(tmp)
+        c_files = _stage(folder, "monitor", MONITOR, {"rg_table.h": generate.table_header(table, data),
+                                                      "build_info.h": generate.build_info_header(tok)}, core=True)
+        if fmi == 2:
+            xml = generate.model_description_fmi2(MONITOR_ID, tok, description, MONITOR, c_files + ["fmi2.c"],
+                                                  0.1, 60.0, starts)
+        else:
+            xml = generate.model_description_fmi3(MONITOR_ID, tok, description, MONITOR, 0.1, 60.0, starts)
+        return _finish(folder, MONITOR_ID, fmi, c_files, xml, out)
+
+
+def build_train(out_dir: str | Path = ".", name: str | None = None) -> Path:
+    """The train-dynamics FMU (FMI 2.0 Co-Simulation)."""
+    out = Path(out_dir) / (name or "railguard-train-fmi2.fmu")
+    description = ("railguard train dynamics: Davis resistance, gradient, brake delay and build-up, "
+                   "obstacle scenario, six sensor channels with seeded noise and fault injection")
+    with tempfile.TemporaryDirectory(prefix="railguard-fmu-") as tmp:
+        folder = Path(tmp)
+        c_files = _stage(folder, "train", TRAIN, {}, core=False)
+        xml = generate.model_description_fmi2(TRAIN_ID, TRAIN_TOKEN, description, TRAIN, c_files + ["fmi2.c"],
+                                              0.01, 60.0)
+        return _finish(folder, TRAIN_ID, 2, c_files, xml, out)

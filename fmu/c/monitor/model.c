@@ -1,0 +1,268 @@
+/* The monitor FMU's model: FMI values in, one core cycle per 100 ms, FMI values out.
+ *
+ * Real inputs are read into the core's integer units towards the safe side: distance
+ * rounded down to dm, closing and train speed rounded up to cm/s. NaN or a value outside
+ * its range becomes a value the core refuses (the channel counts as DEGRADED, the train
+ * state as a train-input error). fmu/reference.py does exactly the same in Python. */
+#include <math.h>
+#include <stdio.h>
+
+#include "model.h"
+#include "rg_table.h"
+#include "variables.h"
+
+#define CH_FIELDS 5
+typedef char channel_layout_check[(vr_ch2_status - vr_ch1_status == CH_FIELDS &&
+                                   vr_ch1_distance == vr_ch1_status + 1 && vr_ch1_closing_speed == vr_ch1_status + 2 &&
+                                   vr_ch1_type == vr_ch1_status + 3 && vr_ch1_valid == vr_ch1_status + 4 &&
+                                   vr_ch6_valid == vr_ch1_status + 6 * CH_FIELDS - 1) ? 1 : -1];
+
+static int32_t read_distance_dm(double x)
+{
+    if (!(x >= 0.0 && x <= 6000.0)) return -1;
+    return (int32_t)floor(x * 10.0);
+}
+
+static int32_t read_closing_cms(double x)
+{
+    if (!(x >= -150.0 && x <= 150.0)) return 99999;
+    return (int32_t)ceil(x * 100.0);
+}
+
+static int32_t read_speed_cms(double x)
+{
+    if (!(x >= 0.0 && x <= 120.0)) return -1;
+    return (int32_t)ceil(x * 100.0);
+}
+
+static void set_outputs_start(ModelData *m)
+{
+    m->outputs.demand = RG_EMERGENCY;
+    m->outputs.reasons = RG_R_INIT;
+    m->outputs.distance_dm = RG_NO_DISTANCE;
+    m->outputs.node = (int32_t)RG_TABLE_START;
+    m->outputs.mode = RG_INIT;
+    m->outputs.module_flags = 0;
+    m->outputs.system_error = 0;
+    m->outputs.observation = 0;
+    m->outputs.cycle = 0;
+    m->outputs.error_cycles = 0;
+}
+
+void model_set_start_values(ModelData *m)
+{
+    int i;
+    rg_config d;
+    rg_config_default(&d);
+    m->timeout_cycles = d.timeout_cycles;
+    m->persistence_cycles = d.persistence_cycles;
+    m->service_decel_mms2 = d.service_decel_mms2;
+    m->emergency_decel_mms2 = d.emergency_decel_mms2;
+    m->reaction_ms = d.reaction_ms;
+    m->warning_margin_dm = d.warning_margin_dm;
+    m->fast_closing_cms = d.fast_closing_cms;
+    m->safe_reaction = d.safe_reaction;
+    m->recovery_cycles = d.recovery_cycles;
+    m->topology = 3;
+    for (i = 0; i < RG_MAX_CHANNELS; i++) {
+        m->status[i] = 0;
+        m->type[i] = 0;
+        m->valid[i] = 0;
+        m->distance[i] = 0.0;
+        m->closing[i] = 0.0;
+        m->inputs.reports[i].heard = 0;
+        m->inputs.reports[i].status = 0;
+        m->inputs.reports[i].distance_dm = 0;
+        m->inputs.reports[i].closing_cms = 0;
+        m->inputs.reports[i].obstacle = 0;
+        m->inputs.reports[i].tick = 0;
+    }
+    m->speed = 0.0;
+    m->track = 0;
+    m->brake = 0;
+    m->inputs.overruns = 0;
+    m->cycles = 0;
+    m->table.bytes = RG_TABLE_BYTES;
+    m->table.length = RG_TABLE_LENGTH;
+    m->table.action_offset = RG_TABLE_ACTION_OFFSET;
+    m->table.next_offset = RG_TABLE_NEXT_OFFSET;
+    m->table.nodes = RG_TABLE_NODES;
+    m->table.observations = RG_TABLE_OBSERVATIONS;
+    m->table.index_bytes = RG_TABLE_INDEX_BYTES;
+    m->table.start = RG_TABLE_START;
+    m->table.model = RG_TABLE_MODEL;
+    m->table.period_ms = RG_TABLE_PERIOD_MS;
+    set_outputs_start(m);
+}
+
+int model_initialize(ModelData *m, char *msg, size_t len)
+{
+    static const char hex[] = "0123456789abcdef";
+    static const char expected[] = RG_TABLE_SHA256;
+    rg_config *c = &m->config;
+    int i;
+    rg_config_default(c);
+    if (m->topology != 3 && m->topology != 2) {
+        snprintf(msg, len, "topology = %ld: must be 3 (3oo3) or 2 (a single 2oo2 module)", (long)m->topology);
+        return RG_ERROR;
+    }
+    c->modules = m->topology == 3 ? 3 : 1;
+    c->timeout_cycles = m->timeout_cycles;
+    c->persistence_cycles = m->persistence_cycles;
+    c->service_decel_mms2 = m->service_decel_mms2;
+    c->emergency_decel_mms2 = m->emergency_decel_mms2;
+    c->reaction_ms = m->reaction_ms;
+    c->warning_margin_dm = m->warning_margin_dm;
+    c->fast_closing_cms = m->fast_closing_cms;
+    c->safe_reaction = m->safe_reaction;
+    c->recovery_cycles = m->recovery_cycles;
+    if (rg_config_check(c, msg, len) != 0) return RG_ERROR;
+    if (rg_table_check(&m->table, c, msg, len) != 0) return RG_ERROR;
+    /* the compiled-in hash must be the one the table's own trailer holds */
+    for (i = 0; i < 32; i++) {
+        uint8_t b = m->table.bytes[m->table.length - 32 + (uint32_t)i];
+        if (expected[2 * i] != hex[b >> 4] || expected[2 * i + 1] != hex[b & 15]) {
+            snprintf(msg, len, "table refused: its SHA-256 differs from the one it was built with (%s)", expected);
+            return RG_ERROR;
+        }
+    }
+    rg_initial_state(&m->table, c, &m->state);
+    set_outputs_start(m);
+    m->cycles = 0;
+    return RG_OK;
+}
+
+int model_do_step(ModelData *m, double time, double h, char *msg, size_t len)
+{
+    long n = lround(h / FIXED_STEP);
+    long k;
+    int i;
+    (void)time;
+    (void)msg;
+    (void)len;
+    for (k = 0; k < n; k++) {
+        int64_t tick = m->cycles * m->config.period_ms;
+        for (i = 0; i < RG_MAX_CHANNELS; i++) {
+            if (m->valid[i]) {
+                rg_report *r = &m->inputs.reports[i];
+                r->heard = 1;
+                r->status = m->status[i];
+                r->distance_dm = read_distance_dm(m->distance[i]);
+                r->closing_cms = read_closing_cms(m->closing[i]);
+                r->obstacle = m->type[i];
+                r->tick = tick;
+            }
+        }
+        m->inputs.train.speed_cms = read_speed_cms(m->speed);
+        m->inputs.train.track = m->track;
+        m->inputs.train.brake = m->brake;
+        rg_step(&m->config, &m->table, &m->state, &m->inputs, tick, &m->outputs);
+        m->cycles++;
+    }
+    return RG_OK;
+}
+
+static int channel_of(uint32_t vr, int *field)
+{
+    if (vr < (uint32_t)vr_ch1_status || vr > (uint32_t)vr_ch6_valid) return -1;
+    *field = (int)((vr - (uint32_t)vr_ch1_status) % CH_FIELDS);
+    return (int)((vr - (uint32_t)vr_ch1_status) / CH_FIELDS);
+}
+
+double model_get_real(const ModelData *m, uint32_t vr)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) return field == 1 ? m->distance[ch] : m->closing[ch];
+    if (vr == vr_train_speed) return m->speed;
+    return 0.0;
+}
+
+int32_t model_get_integer(const ModelData *m, uint32_t vr)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) return field == 0 ? m->status[ch] : m->type[ch];
+    switch (vr) {
+    case vr_train_track_condition: return m->track;
+    case vr_train_brake_status: return m->brake;
+    case vr_timeout_cycles: return m->timeout_cycles;
+    case vr_persistence_cycles: return m->persistence_cycles;
+    case vr_service_decel_mms2: return m->service_decel_mms2;
+    case vr_emergency_decel_mms2: return m->emergency_decel_mms2;
+    case vr_reaction_ms: return m->reaction_ms;
+    case vr_warning_margin_dm: return m->warning_margin_dm;
+    case vr_fast_closing_cms: return m->fast_closing_cms;
+    case vr_safe_reaction: return m->safe_reaction;
+    case vr_recovery_cycles: return m->recovery_cycles;
+    case vr_topology: return m->topology;
+    case vr_brake_demand: return m->outputs.demand;
+    case vr_reasons: return m->outputs.reasons;
+    case vr_voted_distance_dm: return m->outputs.distance_dm;
+    case vr_node: return m->outputs.node;
+    case vr_mode: return m->outputs.mode;
+    case vr_module_flags: return m->outputs.module_flags;
+    case vr_observation: return m->outputs.observation;
+    case vr_cycle: return m->outputs.cycle;
+    case vr_error_cycles: return m->outputs.error_cycles;
+    case vr_period_ms: return RG_TABLE_PERIOD_MS;
+    case vr_table_nodes: return (int32_t)RG_TABLE_NODES;
+    default: return 0;
+    }
+}
+
+int model_get_boolean(const ModelData *m, uint32_t vr)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) return m->valid[ch] != 0;
+    if (vr == vr_system_error) return m->outputs.system_error != 0;
+    return 0;
+}
+
+const char *model_get_string(const ModelData *m, uint32_t vr)
+{
+    (void)m;
+    if (vr == vr_table_model) return RG_TABLE_MODEL_NAME;
+    if (vr == vr_table_sha256) return RG_TABLE_SHA256;
+    return "";
+}
+
+void model_set_real(ModelData *m, uint32_t vr, double v)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) {
+        if (field == 1) m->distance[ch] = v;
+        else m->closing[ch] = v;
+    } else if (vr == vr_train_speed) {
+        m->speed = v;
+    }
+}
+
+void model_set_integer(ModelData *m, uint32_t vr, int32_t v)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) {
+        if (field == 0) m->status[ch] = v;
+        else m->type[ch] = v;
+        return;
+    }
+    switch (vr) {
+    case vr_train_track_condition: m->track = v; break;
+    case vr_train_brake_status: m->brake = v; break;
+    case vr_timeout_cycles: m->timeout_cycles = v; break;
+    case vr_persistence_cycles: m->persistence_cycles = v; break;
+    case vr_service_decel_mms2: m->service_decel_mms2 = v; break;
+    case vr_emergency_decel_mms2: m->emergency_decel_mms2 = v; break;
+    case vr_reaction_ms: m->reaction_ms = v; break;
+    case vr_warning_margin_dm: m->warning_margin_dm = v; break;
+    case vr_fast_closing_cms: m->fast_closing_cms = v; break;
+    case vr_safe_reaction: m->safe_reaction = v; break;
+    case vr_recovery_cycles: m->recovery_cycles = v; break;
+    case vr_topology: m->topology = v; break;
+    default: break;
+    }
+}
+
+void model_set_boolean(ModelData *m, uint32_t vr, int v)
+{
+    int field = 0, ch = channel_of(vr, &field);
+    if (ch >= 0) m->valid[ch] = v != 0;
+}

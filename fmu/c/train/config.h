@@ -1,0 +1,88 @@
+/* railguard train-dynamics FMU: identity, fixed step and the instance data.
+ *
+ * ModelData is plain data (no pointers): the parameters, the input, the outputs and the
+ * internal state, including the sensor noise generators. The model itself is in
+ * model.c; its equations, parameters and faults are described in docs/train_fmu.md.
+ */
+#ifndef RG_TRAIN_CONFIG_H
+#define RG_TRAIN_CONFIG_H
+
+#include <stdint.h>
+
+#define MODEL_IDENTIFIER "railguard_train"
+#define INSTANTIATION_TOKEN "{8c4e810f-3df3-4a00-8276-176fa00ae0b6}"
+#define FIXED_STEP 0.01 /* s: internal integration step */
+
+#define TRAIN_CHANNELS 6
+/* longest brake dead time the demand buffer holds: 5 s in steps of FIXED_STEP */
+#define TRAIN_MAX_DELAY_STEPS 500
+#define TRAIN_RING_SIZE (TRAIN_MAX_DELAY_STEPS + 1)
+
+/* what one sensor channel outputs (sample-and-hold between samples) */
+typedef struct {
+    int32_t status;       /* 0 ABSENT, 1 PRESENT, 2 DEGRADED */
+    double distance;      /* m */
+    double closing_speed; /* m/s, positive when closing */
+    int32_t type;         /* 0 static, 1 dynamic, 2 train */
+    int valid;            /* the channel is alive (false only under the silence fault) */
+} TrainChannel;
+
+typedef struct {
+    /* ---- parameters ---- */
+    double initial_speed;   /* m/s, also the cruising speed */
+    double mass;            /* kg */
+    double davis_a;         /* N */
+    double davis_b;         /* N.s/m */
+    double davis_c;         /* N.s2/m2 */
+    double gradient;        /* per mille, positive uphill */
+    double max_traction;    /* m/s2 */
+    double service_decel;   /* m/s2 */
+    double emergency_decel; /* m/s2 */
+    double brake_delay;     /* s */
+    double brake_buildup;   /* s */
+    int32_t track_condition;
+    int32_t brake_status;
+    int obstacle_present;
+    double obstacle_position; /* m at t = 0 */
+    double obstacle_speed;    /* m/s */
+    int32_t obstacle_type;
+    double sensor_range;           /* m */
+    double sensor_noise_sigma;     /* m */
+    double sensor_miss_probability;
+    double sensor_period;          /* s */
+    int32_t sensor_seed;
+    int32_t fault_kind;
+    int32_t fault_channel;
+    double fault_start; /* s */
+    double fault_end;   /* s */
+
+    /* ---- input ---- */
+    int32_t brake_demand;
+
+    /* ---- outputs ---- */
+    TrainChannel ch[TRAIN_CHANNELS];
+    double speed;        /* train.speed, m/s (also the state) */
+    int32_t out_track_condition;
+    int32_t out_brake_status;
+    double position;     /* m (also the state) */
+    double acceleration; /* m/s2 over the last internal step */
+    double true_distance; /* m, 1e9 without an obstacle */
+    int32_t brake_level; /* level in effect after the dead time */
+    int collided;
+
+    /* ---- internal state ---- */
+    double time;          /* s, = steps * FIXED_STEP */
+    int64_t steps;        /* internal steps since t = 0 */
+    int phase;            /* TRAIN_WAITING, TRAIN_RUNNING, TRAIN_STOPPED (model.c) */
+    int seen_release;     /* brake_demand == 0 has been seen at least once */
+    double cruise_speed;  /* m/s */
+    double brake_decel;   /* m/s2, current brake deceleration */
+    int32_t delay_steps;  /* brake dead time in internal steps */
+    int32_t ring_head;    /* index of the newest demand in ring[] */
+    unsigned char ring[TRAIN_RING_SIZE]; /* demanded levels, one per internal step */
+    int64_t next_sample;  /* index n of the next sensor sample, at n * sensor_period */
+    double wreck_position; /* m, where the collision happened */
+    uint64_t rng[TRAIN_CHANNELS]; /* one splitmix64 stream per channel */
+} ModelData;
+
+#endif

@@ -1,0 +1,610 @@
+/* railguard train-dynamics FMU: the plant around the monitor.
+ *
+ * One train on a straight track, longitudinal dynamics with Davis resistance, gradient,
+ * traction and brakes with a dead time and a linear build-up; one obstacle (static or
+ * moving); six sensor channels with Gaussian noise, misses and injectable faults.
+ * Fixed internal step FIXED_STEP (10 ms). Doubles throughout: this is the plant, not the
+ * deterministic monitor core. Equations, parameters and faults: docs/train_fmu.md.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "model.h"
+#include "variables.h"
+
+#define G_ACCEL 9.81            /* m/s2 */
+#define NO_OBSTACLE_DISTANCE 1e9 /* m: true_distance when there is no obstacle */
+#define HANDOVER_TIME 1.0       /* s: demands are ignored before this unless released once */
+#define SPEED_GAIN 1.0          /* 1/s: proportional gain of the cruise controller */
+#define NOISE_BURST_FACTOR 50.0 /* fault 3 multiplies the noise sigma by this */
+#define GHOST_DISTANCE 50.0     /* m: what fault 7 reports when nothing is visible */
+#define SAMPLE_EPS 1e-9         /* s: tolerance when comparing step and sample times */
+
+enum { TRAIN_WAITING = 0, TRAIN_RUNNING = 1, TRAIN_STOPPED = 2 };
+
+enum {
+    FAULT_NONE = 0,
+    FAULT_SILENCE = 1,
+    FAULT_STUCK = 2,
+    FAULT_NOISE_BURST = 3,
+    FAULT_MISSED = 4,
+    FAULT_DEGRADED = 5,
+    FAULT_NAN_DISTANCE = 6,
+    FAULT_CONTRADICTION = 7
+};
+
+/* The channel getters below rely on the five channel variables being consecutive. */
+typedef char rg_check_channel_layout[(vr_ch2_status - vr_ch1_status == 5 &&
+                                      vr_ch6_valid - vr_ch1_status == 29) ? 1 : -1];
+
+/* ------------------------------------------------------------------ PRNG */
+
+/* splitmix64: one 64-bit state per channel, advanced by a fixed odd increment and
+ * scrambled on output. */
+static uint64_t mix64(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * UINT64_C(0xBF58476D1CE4E5B9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94D049BB133111EB);
+    return z ^ (z >> 31);
+}
+
+static uint64_t next_u64(uint64_t *state)
+{
+    *state += UINT64_C(0x9E3779B97F4A7C15);
+    return mix64(*state);
+}
+
+/* uniform in [0, 1), 53 random bits */
+static double next_uniform(uint64_t *state)
+{
+    return (double)(next_u64(state) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* standard normal by Box-Muller (two uniforms per draw, the second normal is dropped) */
+static double next_gaussian(uint64_t *state)
+{
+    const double two_pi = 6.283185307179586476925286766559;
+    double u1 = 1.0 - next_uniform(state); /* (0, 1]: log is finite */
+    double u2 = next_uniform(state);
+    return sqrt(-2.0 * log(u1)) * cos(two_pi * u2);
+}
+
+static void seed_channels(ModelData *m)
+{
+    uint64_t base = mix64((uint64_t)(uint32_t)m->sensor_seed ^ UINT64_C(0x5241494C47554152));
+    int c;
+    for (c = 0; c < TRAIN_CHANNELS; c++) {
+        m->rng[c] = mix64(base + (uint64_t)(c + 1) * UINT64_C(0xD1B54A32D192ED03));
+    }
+}
+
+/* ------------------------------------------------------------------ helpers */
+
+static int demand_level(int32_t d)
+{
+    if (d == 0) return 0;
+    if (d == 1) return 1;
+    return 2; /* emergency, and anything out of range */
+}
+
+static double level_decel(const ModelData *m, int level)
+{
+    if (level == 0) return 0.0;
+    if (level == 1) return m->service_decel;
+    return m->emergency_decel;
+}
+
+static double resistance_acc(const ModelData *m, double v)
+{
+    return (m->davis_a + m->davis_b * v + m->davis_c * v * v) / m->mass;
+}
+
+static double grade_acc(const ModelData *m)
+{
+    return G_ACCEL * m->gradient / 1000.0;
+}
+
+static int fault_active(const ModelData *m, int channel, double t)
+{
+    return m->fault_kind != FAULT_NONE && m->fault_channel == channel + 1 &&
+           t >= m->fault_start && t < m->fault_end;
+}
+
+/* true distance at the current time; also detects the collision */
+static void update_distance(ModelData *m)
+{
+    double obstacle;
+    if (!m->obstacle_present) {
+        m->true_distance = NO_OBSTACLE_DISTANCE;
+        return;
+    }
+    if (m->collided) {
+        m->true_distance = 0.0;
+        return;
+    }
+    obstacle = m->obstacle_position + m->obstacle_speed * m->time;
+    m->true_distance = obstacle - m->position;
+    if (m->true_distance <= 0.0) {
+        /* collision: the train stops at the obstacle and both stay there */
+        m->collided = 1;
+        m->position = obstacle;
+        m->wreck_position = obstacle;
+        m->speed = 0.0;
+        m->acceleration = 0.0;
+        m->true_distance = 0.0;
+    }
+}
+
+static void update_valid(ModelData *m)
+{
+    int c;
+    for (c = 0; c < TRAIN_CHANNELS; c++) {
+        m->ch[c].valid = !(m->fault_kind == FAULT_SILENCE && fault_active(m, c, m->time));
+    }
+}
+
+/* one sensor sample of every channel at the current time */
+static void sample_sensors(ModelData *m)
+{
+    const int visible = m->obstacle_present && m->true_distance > 0.0 &&
+                        m->true_distance <= m->sensor_range;
+    const double closing = m->speed - m->obstacle_speed;
+    int c;
+    for (c = 0; c < TRAIN_CHANNELS; c++) {
+        TrainChannel *ch = &m->ch[c];
+        const int faulty = fault_active(m, c, m->time);
+        const int kind = faulty ? m->fault_kind : FAULT_NONE;
+        double sigma = m->sensor_noise_sigma;
+        /* every channel draws the same numbers every sample, seen or not, faulty or not,
+         * so a channel's noise does not depend on what happened before */
+        const double u_miss = next_uniform(&m->rng[c]);
+        const double noise = next_gaussian(&m->rng[c]);
+        int seen = visible && !(u_miss < m->sensor_miss_probability);
+
+        if (kind == FAULT_SILENCE || kind == FAULT_STUCK) {
+            continue; /* outputs frozen at their last values */
+        }
+        if (kind == FAULT_NOISE_BURST) sigma *= NOISE_BURST_FACTOR;
+        if (kind == FAULT_MISSED) seen = 0;
+
+        if (kind == FAULT_CONTRADICTION) {
+            if (visible) {
+                seen = 0; /* reports ABSENT although something is there */
+            } else {
+                ch->status = 1; /* reports a ghost */
+                ch->distance = GHOST_DISTANCE;
+                ch->closing_speed = m->speed;
+                ch->type = 0;
+                continue;
+            }
+        }
+
+        if (seen) {
+            double d = m->true_distance + sigma * noise;
+            ch->status = 1;
+            ch->distance = d > 0.0 ? d : 0.0;
+            ch->closing_speed = closing;
+            ch->type = m->obstacle_type;
+        } else {
+            ch->status = 0;
+            ch->distance = 0.0;
+            ch->closing_speed = 0.0;
+            ch->type = 0;
+        }
+        if (kind == FAULT_DEGRADED) ch->status = 2;
+        if (kind == FAULT_NAN_DISTANCE) {
+            ch->status = 1;
+            ch->distance = NAN;
+            if (!seen) {
+                ch->closing_speed = m->obstacle_present ? closing : m->speed;
+                ch->type = m->obstacle_present ? m->obstacle_type : 0;
+            }
+        }
+    }
+}
+
+/* sample the sensors if a sample time n * period has been reached */
+static void maybe_sample(ModelData *m)
+{
+    int due = 0;
+    while ((double)m->next_sample * m->sensor_period <= m->time + SAMPLE_EPS) {
+        due = 1;
+        m->next_sample++;
+    }
+    if (due) sample_sensors(m);
+}
+
+/* ------------------------------------------------------------------ one internal step */
+
+static void internal_step(ModelData *m)
+{
+    const double dt = FIXED_STEP;
+    const int raw = demand_level(m->brake_demand);
+    int demand, level;
+    double target, traction = 0.0, v = m->speed, a, v_new, dx;
+
+    /* demands: ignored while entering the monitored section (hand-over) */
+    if (raw == 0) m->seen_release = 1;
+    if (m->phase == TRAIN_WAITING && raw == 0) m->phase = TRAIN_RUNNING;
+    demand = (m->seen_release || m->time >= HANDOVER_TIME - SAMPLE_EPS) ? raw : 0;
+
+    /* dead time: the level in effect is the demand of delay_steps steps ago */
+    m->ring_head = (m->ring_head + 1) % TRAIN_RING_SIZE;
+    m->ring[m->ring_head] = (unsigned char)demand;
+    level = m->ring[(m->ring_head + TRAIN_RING_SIZE - m->delay_steps) % TRAIN_RING_SIZE];
+    m->brake_level = level;
+
+    /* brake build-up and release: linear ramp at emergency_decel / brake_buildup */
+    target = level_decel(m, level);
+    if (m->brake_buildup <= 0.0) {
+        m->brake_decel = target;
+    } else {
+        const double ramp = m->emergency_decel / m->brake_buildup * dt;
+        if (m->brake_decel < target) {
+            m->brake_decel = (m->brake_decel + ramp < target) ? m->brake_decel + ramp : target;
+        } else if (m->brake_decel > target) {
+            m->brake_decel = (m->brake_decel - ramp > target) ? m->brake_decel - ramp : target;
+        }
+    }
+
+    m->steps++;
+    m->time = (double)m->steps * dt;
+
+    if (m->collided) {
+        m->speed = 0.0;
+        m->acceleration = 0.0;
+        m->position = m->wreck_position;
+        update_distance(m);
+        return;
+    }
+
+    /* traction: feed-forward of resistance and gradient plus a proportional term,
+     * limited to [0, max_traction]; cut while a brake level is applied */
+    if (m->phase == TRAIN_RUNNING && level == 0 && m->cruise_speed > 0.0) {
+        traction = resistance_acc(m, v) + grade_acc(m) + SPEED_GAIN * (m->cruise_speed - v);
+        if (traction < 0.0) traction = 0.0;
+        if (traction > m->max_traction) traction = m->max_traction;
+    }
+
+    if (v > 0.0) {
+        a = traction - resistance_acc(m, v) - grade_acc(m) - m->brake_decel;
+        v_new = v + a * dt;
+        if (v_new <= 0.0) {
+            /* stops within the step: integrate up to the standstill only */
+            const double t_stop = (a < 0.0) ? v / -a : dt;
+            dx = 0.5 * v * (t_stop < dt ? t_stop : dt);
+            v_new = 0.0;
+            if (m->phase == TRAIN_RUNNING && (level > 0 || m->brake_decel > 0.0)) {
+                m->phase = TRAIN_STOPPED; /* waits for clearance for the rest of the run */
+            }
+        } else {
+            dx = 0.5 * (v + v_new) * dt;
+        }
+    } else {
+        /* at standstill: resistance and brakes hold the train; it moves off only if the
+         * traction beats them, and never rolls back */
+        a = 0.0;
+        if (traction > 0.0) {
+            a = traction - resistance_acc(m, 0.0) - grade_acc(m) - m->brake_decel;
+            if (a < 0.0) a = 0.0;
+        }
+        v_new = a * dt;
+        dx = 0.5 * v_new * dt;
+    }
+
+    m->speed = v_new;
+    m->position += dx;
+    m->acceleration = a;
+    update_distance(m);
+}
+
+/* ------------------------------------------------------------------ FMI-facing functions */
+
+void model_set_start_values(ModelData *m)
+{
+    memset(m, 0, sizeof *m);
+    m->initial_speed = 20.0;
+    m->mass = 400000.0;
+    m->davis_a = 6000.0;
+    m->davis_b = 100.0;
+    m->davis_c = 8.0;
+    m->gradient = 0.0;
+    m->max_traction = 0.5;
+    m->service_decel = 1.0;
+    m->emergency_decel = 3.0;
+    m->brake_delay = 0.2;
+    m->brake_buildup = 0.5;
+    m->track_condition = 0;
+    m->brake_status = 0;
+    m->obstacle_present = 1;
+    m->obstacle_position = 500.0;
+    m->obstacle_speed = 0.0;
+    m->obstacle_type = 0;
+    m->sensor_range = 400.0;
+    m->sensor_noise_sigma = 0.3;
+    m->sensor_miss_probability = 0.0;
+    m->sensor_period = 0.1;
+    m->sensor_seed = 1;
+    m->fault_kind = 0;
+    m->fault_channel = 1;
+    m->fault_start = 0.0;
+    m->fault_end = 1e9;
+
+    m->brake_demand = 0;
+
+    /* outputs before initialisation: the state at t = 0 without a sensor sample */
+    m->speed = m->initial_speed;
+    m->position = 0.0;
+    m->true_distance = m->obstacle_position;
+    m->phase = TRAIN_RUNNING;
+}
+
+static int bad_nonneg(double x)
+{
+    return !isfinite(x) || x < 0.0;
+}
+
+#define FAIL(...) do { snprintf(msg, len, __VA_ARGS__); return RG_ERROR; } while (0)
+
+int model_initialize(ModelData *m, char *msg, size_t len)
+{
+    int c;
+
+    if (msg != NULL && len > 0) msg[0] = '\0';
+    if (msg == NULL) len = 0;
+
+    if (!isfinite(m->initial_speed) || m->initial_speed < 0.0 || m->initial_speed > 120.0)
+        FAIL("initial_speed = %g: must be in [0, 120] m/s", m->initial_speed);
+    if (!isfinite(m->mass) || m->mass <= 0.0)
+        FAIL("mass = %g: must be a finite value > 0 kg", m->mass);
+    if (bad_nonneg(m->davis_a)) FAIL("davis_a = %g: must be finite and >= 0", m->davis_a);
+    if (bad_nonneg(m->davis_b)) FAIL("davis_b = %g: must be finite and >= 0", m->davis_b);
+    if (bad_nonneg(m->davis_c)) FAIL("davis_c = %g: must be finite and >= 0", m->davis_c);
+    if (!isfinite(m->gradient) || m->gradient < -60.0 || m->gradient > 60.0)
+        FAIL("gradient = %g: must be in [-60, 60] per mille", m->gradient);
+    if (bad_nonneg(m->max_traction))
+        FAIL("max_traction = %g: must be finite and >= 0", m->max_traction);
+    if (bad_nonneg(m->service_decel))
+        FAIL("service_decel = %g: must be finite and >= 0", m->service_decel);
+    if (bad_nonneg(m->emergency_decel))
+        FAIL("emergency_decel = %g: must be finite and >= 0", m->emergency_decel);
+    if (m->emergency_decel < m->service_decel)
+        FAIL("emergency_decel = %g: must be >= service_decel = %g", m->emergency_decel,
+             m->service_decel);
+    if (bad_nonneg(m->brake_delay))
+        FAIL("brake_delay = %g: must be finite and >= 0", m->brake_delay);
+    if (bad_nonneg(m->brake_buildup))
+        FAIL("brake_buildup = %g: must be finite and >= 0", m->brake_buildup);
+    if (m->track_condition != 0 && m->track_condition != 1)
+        FAIL("track_condition = %ld: must be 0 or 1", (long)m->track_condition);
+    if (m->brake_status != 0 && m->brake_status != 1)
+        FAIL("brake_status = %ld: must be 0 or 1", (long)m->brake_status);
+    if (bad_nonneg(m->obstacle_position))
+        FAIL("obstacle.position = %g: must be finite and >= 0", m->obstacle_position);
+    if (!isfinite(m->obstacle_speed))
+        FAIL("obstacle.speed = %g: must be finite", m->obstacle_speed);
+    if (m->obstacle_type < 0 || m->obstacle_type > 2)
+        FAIL("obstacle.type = %ld: must be 0, 1 or 2", (long)m->obstacle_type);
+    if (bad_nonneg(m->sensor_range))
+        FAIL("sensor.range = %g: must be finite and >= 0", m->sensor_range);
+    if (bad_nonneg(m->sensor_noise_sigma))
+        FAIL("sensor.noise_sigma = %g: must be finite and >= 0", m->sensor_noise_sigma);
+    if (!(m->sensor_miss_probability >= 0.0 && m->sensor_miss_probability <= 1.0))
+        FAIL("sensor.miss_probability = %g: must be in [0, 1]", m->sensor_miss_probability);
+    if (!isfinite(m->sensor_period) || m->sensor_period < FIXED_STEP - SAMPLE_EPS)
+        FAIL("sensor.period = %g: must be finite and >= %g s", m->sensor_period, FIXED_STEP);
+    if (m->fault_kind < 0 || m->fault_kind > 7)
+        FAIL("fault.kind = %ld: must be 0..7", (long)m->fault_kind);
+    if (m->fault_channel < 1 || m->fault_channel > TRAIN_CHANNELS)
+        FAIL("fault.channel = %ld: must be 1..%d", (long)m->fault_channel, TRAIN_CHANNELS);
+    if (isnan(m->fault_start)) FAIL("fault.start is NaN");
+    if (isnan(m->fault_end)) FAIL("fault.end is NaN");
+    if (m->fault_end < m->fault_start)
+        FAIL("fault.end = %g: must be >= fault.start = %g", m->fault_end, m->fault_start);
+
+    /* internal state at t = 0 */
+    m->time = 0.0;
+    m->steps = 0;
+    m->cruise_speed = m->initial_speed;
+    m->phase = (m->initial_speed > 0.0) ? TRAIN_RUNNING : TRAIN_WAITING;
+    m->seen_release = 0;
+    m->brake_decel = 0.0;
+    {
+        double d = floor(m->brake_delay / FIXED_STEP + 0.5);
+        m->delay_steps = (d > TRAIN_MAX_DELAY_STEPS) ? TRAIN_MAX_DELAY_STEPS : (int32_t)d;
+    }
+    m->ring_head = 0;
+    memset(m->ring, 0, sizeof m->ring);
+    m->next_sample = 0;
+    m->wreck_position = 0.0;
+    seed_channels(m);
+
+    /* outputs at t = 0 */
+    m->speed = m->initial_speed;
+    m->position = 0.0;
+    m->acceleration = 0.0;
+    m->brake_level = 0;
+    m->collided = 0;
+    m->out_track_condition = m->track_condition;
+    m->out_brake_status = m->brake_status;
+    for (c = 0; c < TRAIN_CHANNELS; c++) {
+        m->ch[c].status = 0;
+        m->ch[c].distance = 0.0;
+        m->ch[c].closing_speed = 0.0;
+        m->ch[c].type = 0;
+    }
+    update_distance(m);
+    update_valid(m);
+    maybe_sample(m); /* first sample at t = 0 */
+    return RG_OK;
+}
+
+int model_do_step(ModelData *m, double time, double h, char *msg, size_t len)
+{
+    double n;
+    int64_t i, steps;
+    (void)time; /* the model keeps its own time, a whole number of internal steps */
+
+    if (!isfinite(h) || h < 0.0 || h > 1e9) {
+        if (msg != NULL && len > 0) snprintf(msg, len, "invalid communication step %g s", h);
+        return RG_ERROR;
+    }
+    n = floor(h / FIXED_STEP + 0.5);
+    steps = (int64_t)n;
+    for (i = 0; i < steps; i++) {
+        internal_step(m);
+        update_valid(m);
+        maybe_sample(m);
+    }
+    return RG_OK;
+}
+
+/* ------------------------------------------------------------------ get / set */
+
+static const TrainChannel *channel_of(const ModelData *m, uint32_t vr, int *field)
+{
+    const uint32_t k = vr - (uint32_t)vr_ch1_status;
+    *field = (int)(k % 5u);
+    return &m->ch[k / 5u];
+}
+
+static int is_channel_vr(uint32_t vr)
+{
+    return vr >= (uint32_t)vr_ch1_status && vr <= (uint32_t)vr_ch6_valid;
+}
+
+double model_get_real(const ModelData *m, uint32_t vr)
+{
+    if (is_channel_vr(vr)) {
+        int field;
+        const TrainChannel *ch = channel_of(m, vr, &field);
+        switch (field) {
+        case 1: return ch->distance;
+        case 2: return ch->closing_speed;
+        default: return 0.0;
+        }
+    }
+    switch (vr) {
+    case vr_time: return m->time;
+    case vr_initial_speed: return m->initial_speed;
+    case vr_mass: return m->mass;
+    case vr_davis_a: return m->davis_a;
+    case vr_davis_b: return m->davis_b;
+    case vr_davis_c: return m->davis_c;
+    case vr_gradient: return m->gradient;
+    case vr_max_traction: return m->max_traction;
+    case vr_service_decel: return m->service_decel;
+    case vr_emergency_decel: return m->emergency_decel;
+    case vr_brake_delay: return m->brake_delay;
+    case vr_brake_buildup: return m->brake_buildup;
+    case vr_obstacle_position: return m->obstacle_position;
+    case vr_obstacle_speed: return m->obstacle_speed;
+    case vr_sensor_range: return m->sensor_range;
+    case vr_sensor_noise_sigma: return m->sensor_noise_sigma;
+    case vr_sensor_miss_probability: return m->sensor_miss_probability;
+    case vr_sensor_period: return m->sensor_period;
+    case vr_fault_start: return m->fault_start;
+    case vr_fault_end: return m->fault_end;
+    case vr_train_speed: return m->speed;
+    case vr_position: return m->position;
+    case vr_acceleration: return m->acceleration;
+    case vr_true_distance: return m->true_distance;
+    default: return 0.0;
+    }
+}
+
+int32_t model_get_integer(const ModelData *m, uint32_t vr)
+{
+    if (is_channel_vr(vr)) {
+        int field;
+        const TrainChannel *ch = channel_of(m, vr, &field);
+        switch (field) {
+        case 0: return ch->status;
+        case 3: return ch->type;
+        default: return 0;
+        }
+    }
+    switch (vr) {
+    case vr_brake_demand: return m->brake_demand;
+    case vr_track_condition: return m->track_condition;
+    case vr_brake_status: return m->brake_status;
+    case vr_obstacle_type: return m->obstacle_type;
+    case vr_sensor_seed: return m->sensor_seed;
+    case vr_fault_kind: return m->fault_kind;
+    case vr_fault_channel: return m->fault_channel;
+    case vr_train_track_condition: return m->out_track_condition;
+    case vr_train_brake_status: return m->out_brake_status;
+    case vr_brake_level: return m->brake_level;
+    default: return 0;
+    }
+}
+
+int model_get_boolean(const ModelData *m, uint32_t vr)
+{
+    if (is_channel_vr(vr)) {
+        int field;
+        const TrainChannel *ch = channel_of(m, vr, &field);
+        return field == 4 ? ch->valid : 0;
+    }
+    switch (vr) {
+    case vr_obstacle_present: return m->obstacle_present;
+    case vr_collided: return m->collided;
+    default: return 0;
+    }
+}
+
+const char *model_get_string(const ModelData *m, uint32_t vr)
+{
+    (void)m;
+    (void)vr;
+    return ""; /* this model has no String variables */
+}
+
+void model_set_real(ModelData *m, uint32_t vr, double v)
+{
+    switch (vr) {
+    case vr_initial_speed: m->initial_speed = v; break;
+    case vr_mass: m->mass = v; break;
+    case vr_davis_a: m->davis_a = v; break;
+    case vr_davis_b: m->davis_b = v; break;
+    case vr_davis_c: m->davis_c = v; break;
+    case vr_gradient: m->gradient = v; break;
+    case vr_max_traction: m->max_traction = v; break;
+    case vr_service_decel: m->service_decel = v; break;
+    case vr_emergency_decel: m->emergency_decel = v; break;
+    case vr_brake_delay: m->brake_delay = v; break;
+    case vr_brake_buildup: m->brake_buildup = v; break;
+    case vr_obstacle_position: m->obstacle_position = v; break;
+    case vr_obstacle_speed: m->obstacle_speed = v; break;
+    case vr_sensor_range: m->sensor_range = v; break;
+    case vr_sensor_noise_sigma: m->sensor_noise_sigma = v; break;
+    case vr_sensor_miss_probability: m->sensor_miss_probability = v; break;
+    case vr_sensor_period: m->sensor_period = v; break;
+    case vr_fault_start: m->fault_start = v; break;
+    case vr_fault_end: m->fault_end = v; break;
+    default: break;
+    }
+}
+
+void model_set_integer(ModelData *m, uint32_t vr, int32_t v)
+{
+    switch (vr) {
+    case vr_brake_demand: m->brake_demand = v; break;
+    case vr_track_condition: m->track_condition = v; break;
+    case vr_brake_status: m->brake_status = v; break;
+    case vr_obstacle_type: m->obstacle_type = v; break;
+    case vr_sensor_seed: m->sensor_seed = v; break;
+    case vr_fault_kind: m->fault_kind = v; break;
+    case vr_fault_channel: m->fault_channel = v; break;
+    default: break;
+    }
+}
+
+void model_set_boolean(ModelData *m, uint32_t vr, int v)
+{
+    switch (vr) {
+    case vr_obstacle_present: m->obstacle_present = v ? 1 : 0; break;
+    default: break;
+    }
+}

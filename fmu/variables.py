@@ -1,0 +1,159 @@
+"""The variables of the two FMUs, in one place: the XML model descriptions (FMI 2.0 and
+3.0), the C value-reference header and the Python reference all come from these lists,
+so they cannot drift apart. Value references are the list positions (0 is time)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from monitor.core.config import Config
+
+CHANNELS = 6
+
+TYPES = ("Real", "Integer", "Boolean", "String")
+CAUSALITIES = ("parameter", "input", "output", "independent")
+VARIABILITIES = ("constant", "fixed", "tunable", "discrete", "continuous")
+
+
+@dataclass(frozen=True)
+class Var:
+    name: str
+    type: str                  # Real, Integer, Boolean, String
+    causality: str             # parameter, input, output, independent
+    variability: str           # constant, fixed, tunable, discrete, continuous
+    start: object = None       # None: initial="calculated" (outputs) / no start (time)
+    unit: str | None = None
+    description: str = ""
+    min: float | None = None
+    max: float | None = None
+
+    @property
+    def c_name(self) -> str:
+        return "vr_" + self.name.replace(".", "_")
+
+
+TIME = Var("time", "Real", "independent", "continuous", unit="s", description="simulation time")
+
+_CFG = Config()
+
+
+def _monitor() -> list[Var]:
+    v = [TIME]
+    for i in range(1, CHANNELS + 1):
+        p = f"ch{i}."
+        v += [
+            Var(p + "status", "Integer", "input", "discrete", 0, None,
+                f"channel {i} status: 0 ABSENT, 1 PRESENT, 2 DEGRADED; anything else counts as DEGRADED"),
+            Var(p + "distance", "Real", "input", "continuous", 0.0, "m",
+                f"channel {i} distance to the obstacle, 0..6000 m (read in dm, rounded down); NaN or out of range counts as DEGRADED"),
+            Var(p + "closing_speed", "Real", "input", "continuous", 0.0, "m/s",
+                f"channel {i} closing speed, positive when closing, -150..150 m/s (read in cm/s, rounded up)"),
+            Var(p + "type", "Integer", "input", "discrete", 0, None,
+                f"channel {i} obstacle type: 0 static, 1 dynamic, 2 train"),
+            Var(p + "valid", "Boolean", "input", "discrete", False, None,
+                f"channel {i} delivered a new report this step; false keeps the last one, which ages into DEGRADED"),
+        ]
+    v += [
+        Var("train.speed", "Real", "input", "continuous", 0.0, "m/s",
+            "train speed, 0..120 m/s (read in cm/s, rounded up); NaN or out of range is a train-input error"),
+        Var("train.track_condition", "Integer", "input", "discrete", 0, None, "0 normal, 1 slippery"),
+        Var("train.brake_status", "Integer", "input", "discrete", 0, None, "0 normal, 1 degraded"),
+    ]
+    docs = {
+        "timeout_cycles": "a report older than this many cycles is stale",
+        "persistence_cycles": "a 2oo2 disagreement this long is a perceptor error",
+        "service_decel_mms2": "service braking deceleration for alpha1(v), mm/s^2",
+        "emergency_decel_mms2": "emergency braking deceleration for alpha2(v) and the envelope, mm/s^2",
+        "reaction_ms": "reaction and brake build-up time in the braking distances, ms",
+        "warning_margin_dm": "warning zone length beyond alpha1, dm",
+        "fast_closing_cms": "Model 2: closing speed from which an obstacle is fast, cm/s",
+        "safe_reaction": "demand on a system error: 1 service, 2 emergency",
+        "recovery_cycles": "error-free cycles before DEGRADED or SAFE_STOP clear",
+    }
+    for name, text in docs.items():
+        v.append(Var(name, "Integer", "parameter", "fixed", getattr(_CFG, name), None, text))
+    v.append(Var("topology", "Integer", "parameter", "fixed", 3, None,
+                 "3: 3oo3 over three 2oo2 modules (channels 1-6); 2: one 2oo2 module (channels 1-2)"))
+    v += [
+        Var("brake_demand", "Integer", "output", "discrete", 2, None,
+            "0 none, 1 service, 2 emergency (emergency until every channel has been fresh once)"),
+        Var("reasons", "Integer", "output", "discrete", 16, None,
+            "reason bits: 1 table, 2 envelope, 4 system_error, 8 latch, 16 init, 32 safe_stop, 64 stale, 128 perceptor, 256 deadline, 512 train_input"),
+        Var("voted_distance_dm", "Integer", "output", "discrete", 65535, None, "voted obstacle distance in dm; 65535: none"),
+        Var("node", "Integer", "output", "discrete", 0, None, "controller node of the policy table"),
+        Var("mode", "Integer", "output", "discrete", 0, None, "0 INIT, 1 NORMAL, 2 DEGRADED, 3 SAFE_STOP"),
+        Var("module_flags", "Integer", "output", "discrete", 0, None, "bit m: 2oo2 module m+1 raised its flag"),
+        Var("system_error", "Boolean", "output", "discrete", False, None, "2oo2 flag, 3oo3 disagreement or train-input error"),
+        Var("observation", "Integer", "output", "discrete", 0, None, "observation index fed to the table"),
+        Var("cycle", "Integer", "output", "discrete", 0, None, "cycles run (saturates at 2^31-1)"),
+        Var("error_cycles", "Integer", "output", "discrete", 0, None, "cycles with an error or a stale channel"),
+        Var("period_ms", "Integer", "output", "constant", _CFG.period_ms, None, "fixed internal cycle period, ms"),
+        Var("table.model", "String", "output", "constant", "", None, "model the policy table was solved for"),
+        Var("table.sha256", "String", "output", "constant", "", None, "SHA-256 of the policy table file"),
+        Var("table.nodes", "Integer", "output", "constant", 0, None, "number of controller nodes"),
+    ]
+    return v
+
+
+MONITOR = _monitor()
+MONITOR_INPUTS = [v for v in MONITOR if v.causality == "input"]
+MONITOR_OUTPUTS = [v for v in MONITOR if v.causality == "output" and v.variability != "constant"]
+PARAMETERS = [v for v in MONITOR if v.causality == "parameter"]
+
+
+def _train() -> list[Var]:
+    v = [TIME]
+    P = "parameter"
+    v += [
+        Var("brake_demand", "Integer", "input", "discrete", 0, None, "brake demand read from the monitor: 0 none, 1 service, 2 emergency"),
+        Var("initial_speed", "Real", P, "fixed", 20.0, "m/s", "train speed at t = 0", 0.0, 120.0),
+        Var("mass", "Real", P, "fixed", 400000.0, "kg", "train mass", 1.0),
+        Var("davis_a", "Real", P, "fixed", 6000.0, "N", "Davis resistance, constant term", 0.0),
+        Var("davis_b", "Real", P, "fixed", 100.0, "N.s/m", "Davis resistance, term in v", 0.0),
+        Var("davis_c", "Real", P, "fixed", 8.0, "N.s2/m2", "Davis resistance, term in v^2", 0.0),
+        Var("gradient", "Real", P, "fixed", 0.0, None, "track gradient in per mille, positive uphill", -60.0, 60.0),
+        Var("max_traction", "Real", P, "fixed", 0.5, "m/s2", "traction acceleration available to hold the cruising speed", 0.0),
+        Var("service_decel", "Real", P, "fixed", 1.0, "m/s2", "deceleration of service braking", 0.0),
+        Var("emergency_decel", "Real", P, "fixed", 3.0, "m/s2", "deceleration of emergency braking", 0.0),
+        Var("brake_delay", "Real", P, "fixed", 0.2, "s", "dead time before the brakes react to a new demand", 0.0),
+        Var("brake_buildup", "Real", P, "fixed", 0.5, "s", "time for the brake force to ramp from zero to full", 0.0),
+        Var("track_condition", "Integer", P, "fixed", 0, None, "0 normal, 1 slippery (reported to the monitor)"),
+        Var("brake_status", "Integer", P, "fixed", 0, None, "0 normal, 1 degraded (reported to the monitor)"),
+        Var("obstacle.present", "Boolean", P, "fixed", True, None, "an obstacle is on the track"),
+        Var("obstacle.position", "Real", P, "fixed", 500.0, "m", "obstacle position at t = 0, measured from the train's start", 0.0),
+        Var("obstacle.speed", "Real", P, "fixed", 0.0, "m/s", "obstacle speed along the track (0: static)"),
+        Var("obstacle.type", "Integer", P, "fixed", 0, None, "0 static, 1 dynamic, 2 train"),
+        Var("sensor.range", "Real", P, "fixed", 400.0, "m", "sensors see an obstacle closer than this", 0.0),
+        Var("sensor.noise_sigma", "Real", P, "fixed", 0.3, "m", "standard deviation of the Gaussian distance noise", 0.0),
+        Var("sensor.miss_probability", "Real", P, "fixed", 0.0, None, "probability that a channel misses a visible obstacle in a sample", 0.0, 1.0),
+        Var("sensor.period", "Real", P, "fixed", 0.1, "s", "sensor reporting period", 0.01),
+        Var("sensor.seed", "Integer", P, "fixed", 1, None, "seed of the sensor noise (same seed, same run)"),
+        Var("fault.kind", "Integer", P, "fixed", 0, None,
+            "0 none, 1 silence, 2 stuck value, 3 noise burst, 4 missed detection, 5 degraded status, 6 out-of-range distance (NaN), 7 contradiction"),
+        Var("fault.channel", "Integer", P, "fixed", 1, None, "channel 1..6 the fault hits"),
+        Var("fault.start", "Real", P, "fixed", 0.0, "s", "fault begins"),
+        Var("fault.end", "Real", P, "fixed", 1e9, "s", "fault ends"),
+    ]
+    for i in range(1, CHANNELS + 1):
+        p = f"ch{i}."
+        v += [
+            Var(p + "status", "Integer", "output", "discrete", None, None, f"channel {i} status: 0 ABSENT, 1 PRESENT, 2 DEGRADED"),
+            Var(p + "distance", "Real", "output", "discrete", None, "m", f"channel {i} measured distance"),
+            Var(p + "closing_speed", "Real", "output", "discrete", None, "m/s", f"channel {i} measured closing speed"),
+            Var(p + "type", "Integer", "output", "discrete", None, None, f"channel {i} obstacle type"),
+            Var(p + "valid", "Boolean", "output", "discrete", None, None, f"channel {i} sent a report in this step"),
+        ]
+    v += [
+        Var("train.speed", "Real", "output", "continuous", None, "m/s", "train speed"),
+        Var("train.track_condition", "Integer", "output", "discrete", None, None, "0 normal, 1 slippery"),
+        Var("train.brake_status", "Integer", "output", "discrete", None, None, "0 normal, 1 degraded"),
+        Var("position", "Real", "output", "continuous", None, "m", "train position"),
+        Var("acceleration", "Real", "output", "continuous", None, "m/s2", "train acceleration"),
+        Var("true_distance", "Real", "output", "continuous", None, "m", "true distance to the obstacle (1e9 with no obstacle)"),
+        Var("brake_level", "Integer", "output", "discrete", None, None, "brake level in effect after the brake delay"),
+        Var("collided", "Boolean", "output", "discrete", None, None, "the train reached the obstacle"),
+    ]
+    return v
+
+
+TRAIN = _train()
+UNITS = ("m", "m/s", "m/s2", "s", "kg", "N", "N.s/m", "N.s2/m2")
