@@ -80,7 +80,8 @@ def _stage(folder: Path, model: str, variables, extra: dict[str, str], core: boo
     src.mkdir(parents=True)
     for name in (CORE_SOURCES + CORE_HEADERS) if core else ():
         shutil.copy(C_DIR / "core" / name, src / name)
-    shutil.copy(C_DIR / "fmi" / "model.h", src / "model.h")
+    for name in ("model.h", "rg_math.h"):
+        shutil.copy(C_DIR / "fmi" / name, src / name)
     for path in sorted((C_DIR / model).glob("*.[ch]")):
         shutil.copy(path, src / path.name)
     (src / "variables.h").write_text(generate.variables_header(variables))
@@ -114,7 +115,7 @@ def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: st
     if table.model not in ("m1", "m2"):
         raise BuildError(f"table is for model {table.model!r}; the monitor FMU runs m1 or m2 tables")
     tok = generate.token(MONITOR_ID, str(fmi), table.sha256, generate.variables_signature(MONITOR))
-    starts = {"table.model": table.model, "table.sha256": table.sha256, "table.nodes": table.nodes, "node": table.start}
+    starts = {"table.model": table.model, "table.sha256": table.sha256, "table.nodes": table.nodes}
     description = (f"railguard anti-collision monitor, policy table {table.model} ({table.nodes} nodes, "
                    f"sha256 {table.sha256[:12]}), 2oo2/3oo3 voting, 100 ms cycle")
     out = Path(out_dir) / (name or f"railguard-monitor-{table.model}-fmi{fmi}.fmu")

@@ -97,3 +97,15 @@ def train_fmu(fmu_dir) -> Path:
     from fmu.build import build_train
 
     return build_train(fmu_dir)
+
+
+@pytest.fixture(scope="session")
+def monitor_drivers(monitor_fmus):
+    """One loaded monitor FMU per (model, FMI version), driven through FMPy; each test
+    resets it (MonitorDriver.reset) before use."""
+    from fmu.driver import MonitorDriver
+
+    opened = {key: MonitorDriver(path) for key, path in monitor_fmus.items()}
+    yield opened
+    for d in opened.values():
+        d.close()

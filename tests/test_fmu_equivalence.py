@@ -96,17 +96,6 @@ def sequences():
     return st.binary(min_size=8, max_size=2000).map(decode_sequence)
 
 
-@pytest.fixture(scope="module")
-def drivers(monitor_fmus):
-    """One loaded FMU per (model, FMI version), reset between sequences."""
-    from fmu.driver import MonitorDriver
-
-    opened = {key: MonitorDriver(path) for key, path in monitor_fmus.items()}
-    yield opened
-    for d in opened.values():
-        d.close()
-
-
 def _check(fmu, table: bytes, params: dict, steps: list) -> None:
     ref = MonitorReference(table, params)
     fmu.reset(params)
@@ -118,9 +107,9 @@ def _check(fmu, table: bytes, params: dict, steps: list) -> None:
 
 
 @pytest.mark.parametrize("model", ["m1", "m2"])
-def test_c_core_in_the_fmu_equals_the_python_core(model, drivers):
+def test_c_core_in_the_fmu_equals_the_python_core(model, monitor_drivers):
     table = read(model)
-    fmu = drivers[(model, 2)]
+    fmu = monitor_drivers[(model, 2)]
     count = [0]
 
     @settings(max_examples=SEQUENCES_PER_TABLE, deadline=None, derandomize=True, database=None,
@@ -135,19 +124,19 @@ def test_c_core_in_the_fmu_equals_the_python_core(model, drivers):
     assert count[0] >= SEQUENCES_PER_TABLE
 
 
-def test_fmi3_monitor_agrees_too(drivers):
+def test_fmi3_monitor_agrees_too(monitor_drivers):
     """A shorter run through the FMI 3.0 FMU: same core, other wrapper."""
     table = read("m1")
 
     @settings(max_examples=300, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
     @given(sequences())
     def check(case):
-        _check(drivers[("m1", 3)], table, *case)
+        _check(monitor_drivers[("m1", 3)], table, *case)
 
     check()
 
 
-def test_a_known_sequence_goes_through_every_mode(drivers):
+def test_a_known_sequence_goes_through_every_mode(monitor_drivers):
     """Guard against a generator that never leaves INIT: one hand-written story compared
     step by step, which must visit NORMAL, DEGRADED and SAFE_STOP."""
     table = read("m1")
@@ -159,4 +148,4 @@ def test_a_known_sequence_goes_through_every_mode(drivers):
     ref = MonitorReference(table)
     modes = [ref.step(inp, c)[-1].mode for inp, c in steps]
     assert {1, 2, 3} <= set(modes), modes
-    _check(drivers[("m1", 2)], table, {}, steps)
+    _check(monitor_drivers[("m1", 2)], table, {}, steps)

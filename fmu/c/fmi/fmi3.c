@@ -17,7 +17,7 @@
  * Log categories: "logError" (errors, always) and "logDebug" (call trace, only with
  * debug logging on).
  */
-#include <math.h>
+#include "rg_math.h"
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -432,7 +432,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     (void)tolerance;
     if (!inst)
         return fmi3Error;
-    if (!isfinite(startTime))
+    if (!rg_isfinite(startTime))
         return fail(inst, "fmi3EnterInitializationMode: startTime %g is not finite", startTime);
     if (stopTimeDefined && !(stopTime >= startTime))
         return fail(inst, "fmi3EnterInitializationMode: stopTime %g is before startTime %g", stopTime, startTime);
@@ -1038,22 +1038,22 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
     *lastSuccessfulTime = t;
-    if (!(fabs(currentCommunicationPoint - t) <= 1e-9 * fmax(1.0, fabs(t))))
+    if (!(rg_fabs(currentCommunicationPoint - t) <= 1e-9 * rg_fmax(1.0, rg_fabs(t))))
         return fail(inst, "fmi3DoStep: currentCommunicationPoint %.17g differs from the FMU time %.17g",
                     currentCommunicationPoint, t);
     /* The model runs on a fixed step: h must be a whole number n >= 1 of FIXED_STEPs
      * (relative tolerance 1e-9). q < 2^53 keeps n exact and the conversion defined. */
     q = h / FIXED_STEP;
-    rounded = floor(q + 0.5);
+    rounded = rg_floor(q + 0.5);
     if (!(h > 0.0) || !(q < 9007199254740992.0) || rounded < 1.0 ||
-        fabs(h - rounded * FIXED_STEP) > 1e-9 * fmax(1.0, h))
+        rg_fabs(h - rounded * FIXED_STEP) > 1e-9 * rg_fmax(1.0, h))
         return fail(inst, "fmi3DoStep: communicationStepSize %.17g is not a positive whole multiple of the fixed step %g",
                     h, FIXED_STEP);
     n = (uint64_t)rounded;
     if (n > UINT64_MAX - inst->steps)
         return fail(inst, "fmi3DoStep: step count overflow");
     end = inst->start_time + (double)(inst->steps + n) * FIXED_STEP;
-    if (inst->stop_time_defined && end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time)))
+    if (inst->stop_time_defined && end > inst->stop_time + 1e-9 * rg_fmax(1.0, rg_fabs(inst->stop_time)))
         return fail(inst, "fmi3DoStep: step to %.17g goes past stopTime %.17g", end, inst->stop_time);
     inst->model_msg[0] = '\0';
     if (model_do_step(&inst->data, t, (double)n * FIXED_STEP, inst->model_msg, sizeof inst->model_msg) != RG_OK) {

@@ -4,7 +4,7 @@
  * rounded down to dm, closing and train speed rounded up to cm/s. NaN or a value outside
  * its range becomes a value the core refuses (the channel counts as DEGRADED, the train
  * state as a train-input error). fmu/reference.py does exactly the same in Python. */
-#include <math.h>
+#include "rg_math.h"
 #include <stdio.h>
 
 #include "model.h"
@@ -20,19 +20,19 @@ typedef char channel_layout_check[(vr_ch2_status - vr_ch1_status == CH_FIELDS &&
 static int32_t read_distance_dm(double x)
 {
     if (!(x >= 0.0 && x <= 6000.0)) return -1;
-    return (int32_t)floor(x * 10.0);
+    return (int32_t)rg_floor(x * 10.0);
 }
 
 static int32_t read_closing_cms(double x)
 {
     if (!(x >= -150.0 && x <= 150.0)) return 99999;
-    return (int32_t)ceil(x * 100.0);
+    return (int32_t)rg_ceil(x * 100.0);
 }
 
 static int32_t read_speed_cms(double x)
 {
     if (!(x >= 0.0 && x <= 120.0)) return -1;
-    return (int32_t)ceil(x * 100.0);
+    return (int32_t)rg_ceil(x * 100.0);
 }
 
 static void set_outputs_start(ModelData *m)
@@ -134,7 +134,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
 
 int model_do_step(ModelData *m, double time, double h, char *msg, size_t len)
 {
-    long n = lround(h / FIXED_STEP);
+    long n = (long)rg_floor(h / FIXED_STEP + 0.5);
     long k;
     int i;
     (void)time;
