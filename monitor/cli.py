@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 import sys
 from pathlib import Path
 from typing import Callable, Sequence
@@ -365,6 +366,33 @@ def cmd_cosim(args: argparse.Namespace) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------- evidence
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    from verification import run
+
+    started = time.perf_counter()
+
+    def progress(msg: str) -> None:
+        if not args.json:
+            print(f"[{time.perf_counter() - started:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    sections, report = run.run(args.out, args.quick, progress, tuple(args.part) if args.part else run.PARTS)
+    checks = [c for s in sections for c in s.checks]
+    passed = all(c.passed for c in checks)
+    if args.json:
+        from verification.report import as_json, plain
+
+        data = as_json(sections)
+        data["report"] = str(report)
+        print(json.dumps(data, default=plain))
+    else:
+        for c in checks:
+            print(c.line())
+        print(f"{'passed' if passed else 'FAILED'}: {sum(c.passed for c in checks)} of {len(checks)} checks; report {report}")
+    return 0 if passed else 1
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -510,6 +538,22 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--no-plot", action="store_true", help="do not draw the plot")
     c.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     c.set_defaults(func=cmd_cosim)
+
+    v = sub.add_parser(
+        "verify",
+        help="compute the evidence: closed-loop probabilities, voter hazard rate, the papers reproduced",
+        description="Run every verification part and write a report (Markdown, JSON and PNG figures) into --out: "
+                    "the closed-loop Markov analysis of the shipped tables (exact and Storm), the 2oo2/3oo3 voter's "
+                    "hazard rate against tolerable rates (seed 002, seed 004), and the simulations of seed 000 and "
+                    "seed 001 through the monitor core. Prints one line per check; exit status 1 if any check fails.",
+    )
+    v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
+    v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
+    v.add_argument("--part", action="append", choices=["closed_loop", "hazard", "seed000", "seed001"],
+                   help="run only this part (repeatable)")
+    v.add_argument("--json", action="store_true",
+                   help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')
+    v.set_defaults(func=cmd_verify)
     return parser
 
 

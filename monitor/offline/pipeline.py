@@ -18,6 +18,21 @@ from .pomdp import POMDP
 from .solver import Progress, Solution, solve
 
 TABLE_SUFFIX = ".table.rgt"
+ALPHAS_SUFFIX = ".alphas.npz"
+
+
+def write_alphas(path: Path, sol: Solution, table_sha256: str) -> None:
+    """The solver's alpha vectors and their actions, tied to the table solved with them, for
+    the online belief-tracking policy (seed 000 eq. 14) that verification compares with."""
+    np.savez_compressed(path, alphas=sol.alphas, actions=sol.actions, table_sha256=np.array(table_sha256))
+
+
+def read_alphas(path: Path, table_sha256: str) -> tuple[np.ndarray, np.ndarray]:
+    """(alphas, actions) of a table; refuses alpha vectors from another solve."""
+    with np.load(path) as data:
+        if str(data["table_sha256"]) != table_sha256:
+            raise ValueError(f"{path}: alpha vectors belong to table {str(data['table_sha256'])[:12]}, not {table_sha256[:12]}")
+        return data["alphas"].copy(), data["actions"].copy()
 
 
 @dataclass
@@ -91,8 +106,10 @@ def write(result: Result, out_dir: str | Path) -> dict[str, Path]:
         "table": out / f"{name}{TABLE_SUFFIX}",
         "pomdp": out / f"{name}.pomdp",
         "summary": out / f"{name}.summary.txt",
+        "alphas": out / f"{name}{ALPHAS_SUFFIX}",
     }
     paths["table"].write_bytes(result.table)
+    write_alphas(paths["alphas"], result.solution, result.sha256)
     pomdp_file.write(result.model, paths["pomdp"])
     paths["summary"].write_text(summary_text(result), encoding="utf-8")
     return paths

@@ -1,0 +1,111 @@
+"""`railguard verify`: the closed-loop analysis, the report, and the command (issue 6)."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from monitor.offline.controller import Controller, closed_loop_matrix
+from verification import closed_loop as cl
+from verification import run as verify_run
+
+
+@pytest.fixture(scope="module")
+def m1_loop():
+    return cl.table_controller("m1")
+
+
+def test_two_phase_chain_is_the_closed_loop(m1_loop):
+    """Two transitions of the two-phase chain, A -> B -> A, are one step of the closed loop."""
+    model, ctrl, _ = m1_loop
+    P2 = cl.two_phase_chain(model, ctrl).toarray()
+    NS = ctrl.nodes * model.shape[0]
+    P, _ = closed_loop_matrix(model, ctrl)
+    assert np.allclose(P2[:NS, NS:] @ P2[NS:, :NS], P.toarray(), atol=1e-15)
+    assert np.allclose(P2.sum(axis=1), 1.0)
+
+
+def test_exact_and_storm_agree_and_match_the_table(m1_loop):
+    model, ctrl, table = m1_loop
+    ex, P, target = cl.exact(model, ctrl, 300)
+    st = cl.storm(model, ctrl, P, target, 300)
+    assert ex.value == pytest.approx(table.header["controller_value"], abs=1e-9)
+    assert abs(st.value - ex.value) <= 1e-6 and abs(st.crash - ex.crash) <= 1e-6
+    assert 0.0 < ex.crash < 1.0
+
+
+def test_crash_probability_grows_with_the_horizon(m1_loop):
+    model, ctrl, _ = m1_loop
+    probs = [cl.exact(model, ctrl, h)[0].crash for h in (1, 10, 100, 300)]
+    assert probs == sorted(probs) and probs[0] < probs[-1]
+
+
+def test_a_wrong_controller_is_told_apart(m1_loop):
+    """The checks can fail: flipping the table's actions changes value and crash probability."""
+    model, ctrl, table = m1_loop
+    flipped = Controller(2 - ctrl.action, ctrl.next, ctrl.start)
+    ex, _, _ = cl.exact(model, flipped, 300)
+    assert abs(ex.value - table.header["controller_value"]) > 1.0
+
+
+def test_baselines_order_as_physics_says(m1_loop):
+    """Always braking makes the hazard least likely; always maintaining makes it most likely."""
+    model, _, _ = m1_loop
+    figs = {name: cl.exact(model, c, 300)[0] for name, c in cl.baselines(model).items()}
+    assert figs["always emergency"].crash < figs["threshold on zone"].crash < figs["always maintain"].crash
+
+
+def test_belief_policy_monte_carlo_is_seeded(m1_loop):
+    from importlib import resources
+
+    from monitor.offline.pipeline import read_alphas
+
+    model, _, table = m1_loop
+    alphas, actions = read_alphas(resources.files("monitor.tables").joinpath("m1.alphas.npz"), table.sha256)
+    a = cl.belief_policy(model, alphas, actions, 100, 500, seed=3)
+    b = cl.belief_policy(model, alphas, actions, 100, 500, seed=3)
+    assert a == b and a.value_ci > 0
+
+
+def test_alphas_of_another_table_are_refused(tmp_path):
+    from importlib import resources
+
+    from monitor.offline.pipeline import read_alphas
+
+    with pytest.raises(ValueError, match="belong to table"):
+        read_alphas(resources.files("monitor.tables").joinpath("m1.alphas.npz"), "0" * 64)
+
+
+def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
+    import types
+
+    broken = types.ModuleType("verification.broken")
+
+    def section(out_dir, quick, progress):
+        raise RuntimeError("planted")
+
+    broken.section = section
+    monkeypatch.setitem(sys.modules, "verification.broken", broken)
+    sections, report = verify_run.run(tmp_path, True, lambda m: None, ("broken",))
+    assert [c.passed for c in sections[0].checks] == [False]
+    assert sections[-1].title == "Scale"
+    assert "planted" in report.read_text()
+    data = json.loads((tmp_path / "report.json").read_text())
+    assert data["passed"] is False
+
+
+def test_verify_quick_passes_with_report_and_json(tmp_path):
+    """The command CI relies on: every part, quick mode, all checks pass."""
+    res = subprocess.run([sys.executable, "-m", "monitor.cli", "verify", "--quick", "--json", "--out", str(tmp_path)],
+                         capture_output=True, text=True)
+    data = json.loads(res.stdout)
+    failed = [c for c in data["checks"] if not c["passed"]]
+    assert res.returncode == 0 and data["passed"], failed
+    assert {p["title"] for p in data["parts"]} and len(data["checks"]) >= 30
+    assert all({"name", "passed", "figure"} <= set(c) for c in data["checks"])
+    text = (tmp_path / "report.md").read_text()
+    for png in (p for part in data["parts"] for p in part["figures"]):
+        assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG" and png in text
