@@ -68,6 +68,7 @@ def _monitor() -> list[Var]:
         "fast_closing_cms": "Model 2: closing speed from which an obstacle is fast, cm/s",
         "safe_reaction": "demand on a system error: 1 service, 2 emergency",
         "recovery_cycles": "error-free cycles before DEGRADED or SAFE_STOP clear",
+        "distance_tolerance_dm": "2oo2: two PRESENT distances further apart than this raise the module flag, dm",
     }
     for name, text in docs.items():
         v.append(Var(name, "Integer", "parameter", "fixed", getattr(_CFG, name), None, text))

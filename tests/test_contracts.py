@@ -20,7 +20,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 CORE = ROOT / "monitor" / "core"
 EXPECTED = {
-    "voter.py": {"vote_2oo2", "disagreement", "vote_3oo3", "vote_single"},
+    "voter.py": {"vote_2oo2", "disagreement", "distances_disagree", "vote_3oo3", "vote_single"},
     "freshness.py": {"in_range", "is_fresh", "effective_status"},
     "envelope.py": {"braking_distance_dm", "zone", "envelope_demand", "combine", "latch"},
     "observation.py": {"speed_class", "m1_observation", "m2_observation"},

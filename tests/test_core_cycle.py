@@ -322,13 +322,33 @@ def test_3oo3_one_module_sees_an_obstacle_the_others_none(module):
 
 def test_3oo3_unanimous_obstacle_is_no_error_and_distance_is_the_shortest():
     d = normal_driver()
-    dists = (50000, 49000, 52000, 48000, 51000, 55000)
+    dists = (50000, 50100, 49990, 49950, 50060, 50020)     # within 10 m inside each module
     reps = tuple(Report(PRESENT, x, 0, STATIC, d.tick) for x in dists)
     out = d.cycle(reps, V)
     assert not out.system_error and out.module_flags == 0
     assert out.mode == NORMAL
-    assert out.distance_dm == 48000
+    assert out.distance_dm == 49950
     assert out.demand == MAINTAIN and out.reasons == 0
+
+
+@pytest.mark.parametrize("gap", [101, 5000])
+def test_2oo2_distances_too_far_apart_raise_the_module_flag(gap):
+    """A stuck value or a noise burst on one channel: both PRESENT, distances more than
+    distance_tolerance_dm (100 dm) apart. The module's flag goes up: system error, emergency."""
+    d = normal_driver()
+    dists = [50000] * 6
+    dists[3] = 50000 + gap
+    out = d.cycle(tuple(Report(PRESENT, x, 0, STATIC, d.tick) for x in dists), V)
+    assert out.module_flags == 0b010 and out.system_error
+    assert out.demand == EMERGENCY and out.reasons & R_SYSTEM_ERROR
+    assert out.distance_dm == 50000
+
+
+def test_2oo2_distances_at_the_tolerance_agree():
+    d = normal_driver()
+    dists = [50000, 50100, 50000, 49900, 50000, 50000]
+    out = d.cycle(tuple(Report(PRESENT, x, 0, STATIC, d.tick) for x in dists), V)
+    assert out.module_flags == 0 and not out.system_error
 
 
 def test_3oo3_one_module_degraded_channel_status_2_is_an_error():
@@ -727,7 +747,7 @@ def test_2oo2_topology_runs_on_two_reports():
     assert (out.mode, out.demand, out.reasons) == (NORMAL, MAINTAIN, 0)
     # both channels see an obstacle inside the envelope: the shorter distance is voted
     t = d.tick
-    out = d.cycle((Report(PRESENT, 2000, 0, STATIC, t), Report(PRESENT, 1500, 0, STATIC, t)), V)
+    out = d.cycle((Report(PRESENT, 1560, 0, STATIC, t), Report(PRESENT, 1500, 0, STATIC, t)), V)
     assert out.distance_dm == 1500 and not out.system_error
     assert out.reasons & R_ENVELOPE and out.demand == EMERGENCY
     out = d.clear(0)

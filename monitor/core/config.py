@@ -26,6 +26,7 @@ class Config(NamedTuple):
     topology: str = "3oo3"
     recovery_cycles: int = 10          # error-free cycles before DEGRADED/SAFE_STOP clear
     max_overruns: int = 3              # consecutive deadline overruns leading to SAFE_STOP
+    distance_tolerance_dm: int = 100   # 2oo2: two PRESENT distances further apart than this raise the flag
 
     @property
     def modules(self) -> int:
@@ -63,6 +64,7 @@ def check(cfg: Config) -> None:
     need(cfg.safe_reaction in (SERVICE, EMERGENCY), "safe_reaction", "must be 1 (service) or 2 (emergency)")
     need(cfg.recovery_cycles >= 1, "recovery_cycles", "must be at least 1 cycle")
     need(cfg.max_overruns >= 1, "max_overruns", "must be at least 1")
+    need(0 <= cfg.distance_tolerance_dm <= 60000, "distance_tolerance_dm", "must be 0..60000 dm")
 
 
 def from_mapping(values: dict) -> Config:

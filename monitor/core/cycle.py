@@ -20,7 +20,7 @@ from .types import (
     PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, SAFE_STOP, STATIC, Inputs, Outputs, State,
 )
-from .voter import disagreement, vote_2oo2, vote_3oo3, vote_single
+from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
 
 
 class Setup(NamedTuple):
@@ -124,6 +124,8 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         da = reports[2 * m].distance_dm if sa == PRESENT else 0
         db = reports[2 * m + 1].distance_dm if sb == PRESENT else 0
         res = vote_2oo2(sa, da, sb, db)
+        if distances_disagree(sa, da, sb, db, cfg.distance_tolerance_dm):
+            res = (res[0], res[1], True)
         results.append(res)
         if res[2]:
             flags |= 1 << m

@@ -44,6 +44,16 @@ def disagreement(sa: int, sb: int) -> bool:
     return (sa == ABSENT and sb == PRESENT) or (sa == PRESENT and sb == ABSENT)
 
 
+def distances_disagree(sa: int, da: int, sb: int, db: int, tolerance_dm: int) -> bool:
+    """Both channels see the obstacle but more than `tolerance_dm` apart: one of them is
+    wrong (a stuck value, a noise burst), so the module must raise its flag.
+
+    pre: tolerance_dm >= 0
+    post: __return__ == (sa == 1 and sb == 1 and (da - db > tolerance_dm or db - da > tolerance_dm))
+    """
+    return sa == PRESENT and sb == PRESENT and (da - db > tolerance_dm or db - da > tolerance_dm)
+
+
 def vote_3oo3(s1: int, d1: int, f1: bool, s2: int, d2: int, f2: bool, s3: int, d3: int, f3: bool) -> tuple[int, int, bool]:
     """(status, distance, error) of the system from three module results.
 

@@ -20,6 +20,7 @@ void rg_config_default(rg_config *cfg)
     cfg->modules = 3;
     cfg->recovery_cycles = 10;
     cfg->max_overruns = 3;
+    cfg->distance_tolerance_dm = 100;
 }
 
 static int refuse(char *msg, size_t len, const char *name, long value, const char *why)
@@ -62,6 +63,8 @@ int rg_config_check(const rg_config *c, char *msg, size_t len)
         return refuse(msg, len, "recovery_cycles", c->recovery_cycles, "must be at least 1 cycle");
     if (c->max_overruns < 1)
         return refuse(msg, len, "max_overruns", c->max_overruns, "must be at least 1");
+    if (c->distance_tolerance_dm < 0 || c->distance_tolerance_dm > 60000)
+        return refuse(msg, len, "distance_tolerance_dm", c->distance_tolerance_dm, "must be 0..60000 dm");
     return 0;
 }
 
@@ -175,6 +178,12 @@ void rg_vote_2oo2(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t *statu
 int32_t rg_disagreement(int32_t sa, int32_t sb)
 {
     return (sa == RG_ABSENT && sb == RG_PRESENT) || (sa == RG_PRESENT && sb == RG_ABSENT);
+}
+
+int32_t rg_distances_disagree(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t tolerance_dm)
+{
+    int64_t diff = (int64_t)da - (int64_t)db;
+    return sa == RG_PRESENT && sb == RG_PRESENT && (diff > tolerance_dm || -diff > tolerance_dm);
 }
 
 void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
@@ -301,6 +310,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         int32_t da = sa == RG_PRESENT ? in->reports[2 * m].distance_dm : 0;
         int32_t db = sb == RG_PRESENT ? in->reports[2 * m + 1].distance_dm : 0;
         rg_vote_2oo2(sa, da, sb, db, &ms[m], &md[m], &mf[m]);
+        if (rg_distances_disagree(sa, da, sb, db, cfg->distance_tolerance_dm)) mf[m] = 1;
         if (mf[m]) flags |= 1 << m;
         disagree[m] = rg_disagreement(sa, sb) ? inc(s->disagree[m]) : 0;
         if (disagree[m] >= cfg->persistence_cycles) perceptor = 1;

@@ -90,6 +90,7 @@ typedef struct {
     int32_t modules;      /* 3: 3oo3 over three 2oo2 modules; 1: a single 2oo2 module */
     int32_t recovery_cycles;
     int32_t max_overruns;
+    int32_t distance_tolerance_dm; /* 2oo2: PRESENT distances further apart raise the flag */
 } rg_config;
 
 /* A table file's bytes, checked by rg_table_check before the first step. */
@@ -154,6 +155,7 @@ int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_tic
 void rg_vote_2oo2(int32_t sa, int32_t da, int32_t sb, int32_t db,
                   int32_t *status, int32_t *distance, int32_t *flag);
 int32_t rg_disagreement(int32_t sa, int32_t sb);
+int32_t rg_distances_disagree(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t tolerance_dm);
 void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
                   int32_t *status, int32_t *distance, int32_t *error);
 int32_t rg_braking_distance_dm(int32_t speed_cms, int32_t decel_mms2, int32_t reaction_ms);

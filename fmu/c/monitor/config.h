@@ -14,7 +14,7 @@
 typedef struct {
     /* parameters (names as in monitor/core/config.py) */
     int32_t timeout_cycles, persistence_cycles, service_decel_mms2, emergency_decel_mms2, reaction_ms,
-        warning_margin_dm, fast_closing_cms, safe_reaction, recovery_cycles, topology;
+        warning_margin_dm, fast_closing_cms, safe_reaction, recovery_cycles, topology, distance_tolerance_dm;
     /* inputs, as the FMI sees them */
     int32_t status[RG_MAX_CHANNELS], type[RG_MAX_CHANNELS], valid[RG_MAX_CHANNELS];
     double distance[RG_MAX_CHANNELS], closing[RG_MAX_CHANNELS];

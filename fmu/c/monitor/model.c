@@ -63,6 +63,7 @@ void model_set_start_values(ModelData *m)
     m->fast_closing_cms = d.fast_closing_cms;
     m->safe_reaction = d.safe_reaction;
     m->recovery_cycles = d.recovery_cycles;
+    m->distance_tolerance_dm = d.distance_tolerance_dm;
     m->topology = 3;
     for (i = 0; i < RG_MAX_CHANNELS; i++) {
         m->status[i] = 0;
@@ -116,6 +117,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     c->fast_closing_cms = m->fast_closing_cms;
     c->safe_reaction = m->safe_reaction;
     c->recovery_cycles = m->recovery_cycles;
+    c->distance_tolerance_dm = m->distance_tolerance_dm;
     if (rg_config_check(c, msg, len) != 0) return RG_ERROR;
     if (rg_table_check(&m->table, c, msg, len) != 0) return RG_ERROR;
     /* the compiled-in hash must be the one the table's own trailer holds */
@@ -194,6 +196,7 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     case vr_safe_reaction: return m->safe_reaction;
     case vr_recovery_cycles: return m->recovery_cycles;
     case vr_topology: return m->topology;
+    case vr_distance_tolerance_dm: return m->distance_tolerance_dm;
     case vr_brake_demand: return m->outputs.demand;
     case vr_reasons: return m->outputs.reasons;
     case vr_voted_distance_dm: return m->outputs.distance_dm;
@@ -257,6 +260,7 @@ void model_set_integer(ModelData *m, uint32_t vr, int32_t v)
     case vr_safe_reaction: m->safe_reaction = v; break;
     case vr_recovery_cycles: m->recovery_cycles = v; break;
     case vr_topology: m->topology = v; break;
+    case vr_distance_tolerance_dm: m->distance_tolerance_dm = v; break;
     default: break;
     }
 }
