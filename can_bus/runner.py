@@ -73,7 +73,9 @@ class MonitorRunner:
             if msg.is_error_frame or msg.is_remote_frame:
                 self.receiver.rejected["error_or_remote_frame"] += 1
                 continue
-            self.receiver.accept(msg.arbitration_id, msg.data, self.clock.now_ms(), msg.is_extended_id)
+            # after an overrun the clock is past the next cycle's tick: a frame is stamped no later
+            # than that tick, never in the cycle's future (older, so it ages sooner: the safe side)
+            self.receiver.accept(msg.arbitration_id, msg.data, min(self.clock.now_ms(), self.next_tick), msg.is_extended_id)
 
     # ------------------------------------------------------------------ one cycle
     def cycle(self) -> Outputs:

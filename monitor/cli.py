@@ -368,7 +368,8 @@ def cmd_cosim(args: argparse.Namespace) -> int:
 
 # ----------------------------------------------------------------------------- evidence
 
-def cmd_verify(args: argparse.Namespace) -> int:
+def _run_evidence(args: argparse.Namespace, parts: tuple[str, ...]) -> int:
+    """Run verification parts, print one line per check (or JSON), exit 1 if one fails."""
     from verification import run
 
     started = time.perf_counter()
@@ -377,7 +378,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"[{time.perf_counter() - started:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    sections, report = run.run(args.out, args.quick, progress, tuple(args.part) if args.part else run.PARTS)
+    sections, report = run.run(args.out, args.quick, progress, parts)
     checks = [c for s in sections for c in s.checks]
     passed = all(c.passed for c in checks)
     if args.json:
@@ -391,6 +392,16 @@ def cmd_verify(args: argparse.Namespace) -> int:
             print(c.line())
         print(f"{'passed' if passed else 'FAILED'}: {sum(c.passed for c in checks)} of {len(checks)} checks; report {report}")
     return 0 if passed else 1
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    from verification import run
+
+    return _run_evidence(args, tuple(args.part) if args.part else run.PARTS)
+
+
+def cmd_campaign(args: argparse.Namespace) -> int:
+    return _run_evidence(args, ("campaign", "fuzz"))
 
 
 def _positive_float(text: str) -> float:
@@ -549,11 +560,26 @@ def build_parser() -> argparse.ArgumentParser:
     )
     v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
     v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
-    v.add_argument("--part", action="append", choices=["closed_loop", "hazard", "seed000", "seed001"],
+    v.add_argument("--part", action="append", choices=["closed_loop", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
                    help="run only this part (repeatable)")
     v.add_argument("--json", action="store_true",
                    help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')
     v.set_defaults(func=cmd_verify)
+
+    ca = sub.add_parser(
+        "campaign",
+        help="fault-injection campaign and receive-path fuzzing on the running monitor",
+        description="Every single fault and every pair from the fault catalogue (silence, stuck value, noise burst, "
+                    "missed detection, CRC corruption, counter freeze and jump, wrong length, babbling, contradiction, "
+                    "stale timestamps, deadline overrun, corrupted or mismatched table) crossed with obstacle scenarios, "
+                    "through the core, a sample through the real runner and codec on the virtual bus and on vcan0; then "
+                    "random and mutated frames into the receive path. Counts unsafe outcomes, crashes, collisions and "
+                    "false braking; writes a report; exit status 1 if a check fails.",
+    )
+    ca.add_argument("--quick", action="store_true", help="a few hundred runs and 20,000 frames (what CI runs)")
+    ca.add_argument("--out", default="railguard-out/campaign", metavar="DIR", help="report folder (default: %(default)s)")
+    ca.add_argument("--json", action="store_true", help='print {"passed": bool, "checks": [...], ...}')
+    ca.set_defaults(func=cmd_campaign)
     return parser
 
 

@@ -6,6 +6,21 @@
 
 #include "rg_sha256.h"
 
+/* ACSL: the contracts on the functions below are the PEP 316 contracts of monitor/core
+ * (freshness.py, voter.py, envelope.py), proved with Frama-C WP; fmu/c/proof/ holds the
+ * EVA driver for the whole step; docs/proof.md says how to run both and what they cover.
+ * Where a Python precondition is not needed by the C function it is left out (the contract
+ * then holds for every int32 input, which is stronger) or becomes the premise of the
+ * ensures that needs it. */
+/*@ predicate rg_in_range_p(integer status, integer distance_dm, integer closing_cms, integer obstacle) =
+        0 <= status <= 2 && 0 <= distance_dm <= 60000 && -15000 <= closing_cms <= 15000 && 0 <= obstacle <= 2;
+    predicate rg_fresh_p(integer received, integer now, integer timeout_ticks) =
+        received <= now && now - received <= timeout_ticks;
+    logic integer rg_max3(integer a, integer b, integer c) = \max(a, \max(b, c));
+    logic integer rg_min3(integer a, integer b, integer c) = \min(a, \min(b, c));
+    logic integer rg_braking_num(integer v, integer a, integer t) = v * v * 10000 + 2 * a * v * t;
+*/
+
 void rg_config_default(rg_config *cfg)
 {
     cfg->period_ms = 100;
@@ -140,17 +155,40 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->error_cycles = 0;
 }
 
+/*@ assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 <==> rg_in_range_p(status, distance_dm, closing_cms, obstacle);
+*/
 int32_t rg_in_range(int32_t status, int32_t distance_dm, int32_t closing_cms, int32_t obstacle)
 {
     return RG_ABSENT <= status && status <= RG_DEGRADED && 0 <= distance_dm && distance_dm <= RG_MAX_DISTANCE_DM &&
            -RG_MAX_CLOSING_CMS <= closing_cms && closing_cms <= RG_MAX_CLOSING_CMS && 0 <= obstacle && obstacle <= 2;
 }
 
+/*@ assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 <==> rg_fresh_p(received, now, timeout_ticks);
+*/
 int32_t rg_is_fresh(int64_t received, int64_t now, int64_t timeout_ticks)
 {
-    return received <= now && now - received <= timeout_ticks;
+    /* received <= now && now - received <= timeout_ticks, for every int64 tick without an
+     * overflow: the difference is only formed when 0 <= received <= now; for received < 0
+     * the bound moves to the other side, where timeout_ticks >= 0 keeps the sum in range
+     * (a negative timeout_ticks makes no report fresh, as now - received >= 0). */
+    if (received >= 0) return received <= now && now - received <= timeout_ticks;
+    return received <= now && timeout_ticks >= 0 && now <= timeout_ticks + received;
 }
 
+/*@ requires \valid_read(r);
+    assigns \nothing;
+    ensures \result == 0 || \result == 1 || \result == 2;
+    ensures \result == 2 || (\result == r->status && r->heard != 0 && rg_fresh_p(r->tick, now, timeout_ticks));
+    ensures r->status == 1 && r->heard != 0 && rg_fresh_p(r->tick, now, timeout_ticks) ==> \result >= 1;
+    ensures r->heard != 0 && rg_fresh_p(r->tick, now, timeout_ticks)
+            && rg_in_range_p(r->status, r->distance_dm, r->closing_cms, r->obstacle) ==> \result == r->status;
+    ensures !(r->heard != 0 && rg_fresh_p(r->tick, now, timeout_ticks)
+              && rg_in_range_p(r->status, r->distance_dm, r->closing_cms, r->obstacle)) ==> \result == 2;
+*/
 int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_ticks)
 {
     if (!r->heard || !rg_is_fresh(r->tick, now, timeout_ticks))
@@ -160,6 +198,18 @@ int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_tic
     return r->status;
 }
 
+/*@ requires \valid(status) && \valid(distance) && \valid(flag);
+    requires \separated(status, distance, flag);
+    assigns *status, *distance, *flag;
+    ensures *status == \max(sa, sb);
+    ensures *flag == 0 || *flag == 1;
+    ensures *flag == 1 <==> (sa != sb || sa == 2 || sb == 2);
+    ensures sa == 1 && sb == 1 ==> *distance == \min(da, db);
+    ensures sa == 1 && sb != 1 ==> *distance == da;
+    ensures sb == 1 && sa != 1 ==> *distance == db;
+    ensures sa != 1 && sb != 1 ==> *distance == 65535;
+    ensures sa == 1 || sb == 1 ==> *status >= 1;
+*/
 void rg_vote_2oo2(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t *status, int32_t *distance, int32_t *flag)
 {
     *status = sa > sb ? sa : sb;
@@ -175,17 +225,36 @@ void rg_vote_2oo2(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t *statu
     *flag = sa != sb || sa == RG_DEGRADED || sb == RG_DEGRADED;
 }
 
+/*@ assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 <==> ((sa == 0 && sb == 1) || (sa == 1 && sb == 0));
+*/
 int32_t rg_disagreement(int32_t sa, int32_t sb)
 {
     return (sa == RG_ABSENT && sb == RG_PRESENT) || (sa == RG_PRESENT && sb == RG_ABSENT);
 }
 
+/*@ assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 <==> (sa == 1 && sb == 1 && (da - db > tolerance_dm || db - da > tolerance_dm));
+*/
 int32_t rg_distances_disagree(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t tolerance_dm)
 {
     int64_t diff = (int64_t)da - (int64_t)db;
     return sa == RG_PRESENT && sb == RG_PRESENT && (diff > tolerance_dm || -diff > tolerance_dm);
 }
 
+/*@ requires \valid_read(s + (0 .. 2)) && \valid_read(d + (0 .. 2)) && \valid_read(f + (0 .. 2));
+    requires \valid(status) && \valid(distance) && \valid(error);
+    requires \separated(status, distance, error, s + (0 .. 2), d + (0 .. 2), f + (0 .. 2));
+    assigns *status, *distance, *error;
+    ensures *status == rg_max3(s[0], s[1], s[2]);
+    ensures *distance == rg_min3(d[0], d[1], d[2]);
+    ensures *error == 0 || *error == 1;
+    ensures *error == 1 <==> (f[0] != 0 || f[1] != 0 || f[2] != 0 || s[0] != s[1] || s[1] != s[2]
+                              || rg_max3(s[0], s[1], s[2]) == 2);
+    ensures s[0] != s[1] || s[1] != s[2] ==> *error == 1;
+*/
 void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
                   int32_t *status, int32_t *distance, int32_t *error)
 {
@@ -200,6 +269,12 @@ void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
     *error = f[0] || f[1] || f[2] || s[0] != s[1] || s[1] != s[2] || st == RG_DEGRADED;
 }
 
+/*@ requires 0 <= speed_cms <= 12000 && 1 <= decel_mms2 <= 20000 && 0 <= reaction_ms <= 60000;
+    assigns \nothing;
+    ensures \result >= 0;
+    ensures \result * 2 * decel_mms2 * 10000 >= rg_braking_num(speed_cms, decel_mms2, reaction_ms);
+    ensures (\result - 1) * 2 * decel_mms2 * 10000 < rg_braking_num(speed_cms, decel_mms2, reaction_ms) || \result == 0;
+*/
 int32_t rg_braking_distance_dm(int32_t speed_cms, int32_t decel_mms2, int32_t reaction_ms)
 {
     int64_t v = speed_cms, a = decel_mms2, t = reaction_ms;
@@ -208,6 +283,12 @@ int32_t rg_braking_distance_dm(int32_t speed_cms, int32_t decel_mms2, int32_t re
     return (int32_t)((num + den - 1) / den);
 }
 
+/*@ assigns \nothing;
+    ensures 0 <= \result <= 3;
+    ensures \result == 3 <==> distance_dm <= alpha2_dm;
+    ensures alpha2_dm <= alpha1_dm ==> (\result >= 2 <==> distance_dm <= alpha1_dm);
+    ensures alpha2_dm <= alpha1_dm && warning_dm >= 0 ==> (\result >= 1 <==> distance_dm <= alpha1_dm + warning_dm);
+*/
 int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32_t warning_dm)
 {
     if (distance_dm <= alpha2_dm) return 3;
@@ -216,11 +297,19 @@ int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32
     return 0;
 }
 
+/*@ assigns \nothing;
+    ensures \result == (present != 0 && distance_dm <= alpha2_dm ? 2 : 0);
+*/
 int32_t rg_envelope_demand(int32_t present, int32_t distance_dm, int32_t alpha2_dm)
 {
     return present && distance_dm <= alpha2_dm ? RG_EMERGENCY : RG_MAINTAIN;
 }
 
+/*@ assigns \nothing;
+    ensures \result >= envelope && \result >= table_demand && \result >= error_demand;
+    ensures \result == table_demand || \result == envelope || \result == error_demand;
+    ensures \result == rg_max3(table_demand, envelope, error_demand);
+*/
 int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand)
 {
     int32_t d = table_demand;
@@ -229,6 +318,15 @@ int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand)
     return d;
 }
 
+/*@ requires \valid(final_demand);
+    assigns *final_demand;
+    ensures \result == 0 || \result == 1;
+    ensures latched != 0 && speed_cms > 0 ==> \result == 1 && *final_demand == 2;
+    ensures demand == 2 && speed_cms > 0 ==> \result == 1;
+    ensures demand <= 2 ==> *final_demand >= demand;
+    ensures speed_cms == 0 ==> \result == 0 && *final_demand == demand;
+    ensures *final_demand == (\result == 1 ? 2 : demand);
+*/
 int32_t rg_latch(int32_t latched, int32_t demand, int32_t speed_cms, int32_t *final_demand)
 {
     int32_t held = (latched || demand == RG_EMERGENCY) && speed_cms > 0;
@@ -297,6 +395,10 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
             seen |= 1u << i;
             if (statuses[i] == RG_PRESENT) {
                 const rg_report *r = &in->reports[i];
+                /* rg_effective_status's contract gives this (WP proves it); EVA, which
+                 * cannot relate the status to the fields, takes the ranges from it */
+                /*@ assert present_in_range: 0 <= r->distance_dm <= 60000 && -15000 <= r->closing_cms <= 15000
+                                             && 0 <= r->obstacle <= 2; */
                 if (!have_closing || r->closing_cms > closing) closing = r->closing_cms;
                 have_closing = 1;
                 if (r->obstacle > obstacle) obstacle = r->obstacle;
@@ -329,8 +431,10 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     speed = in->train.speed_cms;
     track = in->train.track;
     brake = in->train.brake;
-    train_ok = 0 <= speed && speed <= RG_MAX_SPEED_CMS && (track == 0 || track == 1) && (brake == 0 || brake == 1);
-    if (!train_ok) {
+    if (0 <= speed && speed <= RG_MAX_SPEED_CMS && (track == 0 || track == 1) && (brake == 0 || brake == 1)) {
+        train_ok = 1;
+    } else {  /* (written as a branch, not a flag, so that EVA sees the speed's range) */
+        train_ok = 0;
         speed = RG_MAX_SPEED_CMS;
         track = 1;
         brake = 1;

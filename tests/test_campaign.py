@@ -1,0 +1,180 @@
+"""The fault-injection campaign (verification/campaign.py): the quick campaign passes, and
+its checkers can fail: a planted unsafe monitor is reported unsafe, a monitor blind to a
+fault is reported undetected, a refused table is a detection and not a crash, and the
+virtual-bus runs count the codec's own rejects."""
+from __future__ import annotations
+
+import os
+import shutil
+
+import pytest
+
+from monitor.core import cycle
+from monitor.core import table as table_mod
+from monitor.core.config import Config, ConfigurationError
+from monitor.core.types import EMERGENCY, SERVICE
+from verification import campaign as cp
+
+
+@pytest.fixture(scope="module")
+def quick():
+    messages = []
+    summary = cp.run(True, messages.append, vcan_runs=False)
+    return summary, messages
+
+
+def test_quick_campaign_is_safe_and_detects_every_fault(quick):
+    summary, _ = quick
+    core = summary["core"]
+    assert 300 <= core["runs"] <= 1000
+    assert core["unsafe"] == 0, core["unsafe_examples"]
+    assert core["crashes"] == 0, core["crash_examples"]
+    for kind in cp.KINDS:                       # every kind manifested and was seen by its diagnostic
+        d = core["detection"][kind]
+        assert d["manifest"] > 0 and d["detected"] == d["manifest"], (kind, d)
+    assert all(summary["detection"].values())
+    # the fault-free runs never brake without an obstacle; silence always does (the safe side's price)
+    assert core["single"]["none"]["false_braking"] == 0
+    assert core["cells"]["silence|no-obstacle"]["false_braking"] == core["cells"]["silence|no-obstacle"]["runs"] > 0
+    # collisions only where the object appears inside the emergency braking distance
+    assert all(c["collisions"] == 0 for key, c in core["cells"].items() if not key.endswith("|sudden-120m"))
+    bus = summary["bus"]
+    assert bus["runs"] >= 12 and bus["unsafe"] == 0 and bus["crashes"] == 0
+    assert set(bus["detected"]) == set(cp.KINDS) and all(bus["detected"].values())
+    assert all(c.passed for c in cp.checks(summary)), [c.line() for c in cp.checks(summary) if not c.passed]
+
+
+def test_report_section_tables_and_figure(quick, tmp_path):
+    summary, _ = quick
+    fig = cp.heatmap(summary["core"], tmp_path / "heat.png")
+    assert fig.stat().st_size > 10_000 and fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = cp.markdown(summary, fig.name)
+    for kind in cp.KINDS:
+        assert f"`{kind}`" in md
+    assert "| fault \\ scenario |" in md and "sudden-120m" in md and "heat.png" in md
+    names = [c.name for c in cp.checks(summary)]
+    assert len(names) == len(set(names))
+    assert sum(n.startswith("campaign: ") and " detected (" in n for n in names) == len(cp.KINDS)
+
+
+def test_plan_sizes():
+    full = cp.plan(False)
+    assert len(full) >= 10_000
+    assert len({s.key for s in full}) == len(full)
+    combos = cp.combos()
+    assert sum(len(c) == 1 for c in combos) == len(cp.KINDS) == 14
+    assert sum(len(c) == 2 for c in combos) == 14 * 13 // 2 + len(cp.CHANNEL_KINDS)
+    assert {s.scenario for s in full} == {s.name for s in cp.SCENARIOS}
+
+
+def test_runs_are_deterministic():
+    spec = cp.RunSpec(("bad_crc", "noise_burst"), "static-700m-30", 3, "m2")
+    a, b = cp.simulate(spec), cp.simulate(spec)
+    assert a == b
+    assert a["rejects"].get("bad_crc", 0) > 0
+
+
+def test_unsafe_checker_allows_one_cycle_and_no_more():
+    inside = [False, True, True, False]
+    assert cp.unsafe_at(inside, [0, 0, EMERGENCY, EMERGENCY]) == []        # emergency at the next cycle
+    assert cp.unsafe_at(inside, [0, 0, 0, EMERGENCY]) == [1]                # two cycles late for cycle 1
+    assert cp.unsafe_at(inside, [0, 0, 0, 0]) == [1, 2]
+    assert cp.unsafe_at([False, True], [0, SERVICE]) == [1]                  # the last cycle must show it itself
+    assert cp.unsafe_at([True, True], [EMERGENCY, 0]) == [1]
+
+
+def _never_braking_table(model: str = "m1") -> bytes:
+    t = table_mod.decode(cp.shipped_table(model))
+    return table_mod.encode(dict(t.header), (0,) * t.nodes, t.next)
+
+
+def test_a_planted_unsafe_monitor_is_reported_unsafe(monkeypatch):
+    """No envelope, a table that never brakes, service braking on errors: the campaign's
+    checker must call it unsafe (and the train hits the obstacle)."""
+    monkeypatch.setattr(cycle, "envelope_demand", lambda present, distance, alpha2: 0)
+    cfg = Config(safe_reaction=SERVICE)
+    table = _never_braking_table()
+    bad = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), config=cfg, table_bytes=table, keep_trace=True)
+    assert bad["crash"] is None
+    assert bad["unsafe"] > 0 and bad["collision"]
+    first = bad["unsafe_first"]
+    assert (first["true_inside"] or first["voted_inside"]) and first["demand"] != EMERGENCY
+    assert any(row[7] and row[4] != EMERGENCY for row in bad["trace"])    # a true obstacle inside, no emergency
+    # a fault that raises a system error only gets service braking: still unsafe
+    faulty = cp.simulate(cp.RunSpec(("noise_burst",), "static-150m-10", 0, "m1"), config=cfg, table_bytes=table)
+    assert faulty["unsafe"] > 0
+    # the same world with the real monitor is safe
+    assert cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"))["unsafe"] == 0
+
+
+def test_a_voted_obstacle_inside_alpha2_needs_emergency(monkeypatch):
+    """The voted-obstacle clause alone: a phantom 50 m ahead on one channel of a clear track.
+    Without the envelope, service braking on the system error is not enough for the two
+    cycles before the disagreement becomes a perceptor error."""
+    monkeypatch.setattr(cycle, "envelope_demand", lambda present, distance, alpha2: 0)
+    monkeypatch.setattr(cp, "instantiate", lambda spec, rng: [cp.Fault("contradiction", 0, 2.0, 4.0, (500,))])
+    res = cp.simulate(cp.RunSpec(("contradiction",), "no-obstacle", 0, "m1"), config=Config(safe_reaction=SERVICE),
+                      table_bytes=_never_braking_table(), keep_trace=True)
+    assert res["unsafe"] > 0
+    first = res["unsafe_first"]
+    assert first["voted_inside"] and not first["true_inside"] and first["true_distance_m"] is None
+    assert not res["collision"]
+
+
+def test_a_monitor_blind_to_stale_reports_fails_the_silence_check(monkeypatch):
+    from monitor.core.types import PRESENT
+
+    def blind(report, now, timeout):                          # never DEGRADED: reports never age
+        return report.status if report is not None else PRESENT
+    monkeypatch.setattr(cycle, "channel_status", blind)
+    res = cp.simulate(cp.RunSpec(("silence",), "no-obstacle", 0, "m1"))
+    (fault,) = res["faults"]
+    assert fault["manifest_cycle"] is not None and not fault["detected"]
+
+
+@pytest.mark.parametrize("kind,variants", [("table_corrupted", ("flip", "digest", "truncate", "magic")),
+                                           ("table_mismatch", ("expect_model", "period", "relabel", "reorder"))])
+def test_a_refused_table_is_detected_and_not_a_crash(kind, variants):
+    for model in ("m1", "m2"):
+        for v in variants:
+            fault = cp.Fault(kind, -1, 0.0, 0.0, (v, 0.37))
+            data, expect, cfg = cp.faulty_table(fault, model, Config())
+            with pytest.raises(ConfigurationError):
+                cycle.create(cfg, data, expect)
+    res = cp.simulate(cp.RunSpec((kind, "silence"), "static-300m-20", 2, "m2"))
+    assert res["crash"] is None and res["config_error"]
+    assert res["unsafe"] == 0 and not res["entered"] and not res["collision"]
+    assert res["false_braking"]                               # held at the entry: counted as the price
+    table_fault = next(f for f in res["faults"] if f["kind"] == kind)
+    assert table_fault["detected"]
+
+
+def test_virtual_bus_run_counts_bad_crc_rejects():
+    spec = cp.BusSpec("t-bad-crc", "static-700m-30", (cp.Fault("bad_crc", 2, 1.0, 3.0),), "m1", 5, True, 20.0)
+    res = cp.bus_run(spec)
+    assert res["crash"] is None and res["unsafe"] == 0
+    assert res["rejects"]["bad_crc"] >= 15                    # 2 s of frames of one channel, 100 ms period
+    assert res["detected"] == {"bad_crc": True}
+    assert "bad_crc@ch2" in res["faults_injected"]
+
+
+def test_virtual_bus_deadline_overrun_reaches_safe_stop():
+    spec = cp.BusSpec("t-overrun", "static-700m-30", (cp.Fault("deadline_overrun", -1, 1.0, 2.0),), "m2", 6, True, 20.0)
+    res = cp.bus_run(spec)
+    assert res["crash"] is None and res["unsafe"] == 0
+    assert res["deadline_misses"] >= 3 and res["detected"] == {"deadline_overrun": True}
+
+
+def test_vcan_sample_in_the_sandbox():
+    from can_bus import vcan
+
+    if shutil.which("apt-get") is None and not (vcan.cache_dir() / "root/usr/bin/linux.uml").is_file():
+        if os.environ.get("CI") == "true":
+            pytest.fail("no apt-get to fetch user-mode-linux, and no cached sandbox")
+        pytest.skip("needs apt-get (Debian) for the user-mode-linux sandbox")
+    out = cp.vcan_sample(cp.vcan_plan(True), lambda _: None)
+    (run,) = out["runs"]
+    assert run["crash"] is None, run["crash"]
+    assert run["unsafe"] == 0 and not run["collision"]
+    assert run["cycles"] >= 50 and run["frames_received"] > 300
+    assert all(run["detected"].values()) and run["detected"]

@@ -1,0 +1,151 @@
+"""The Frama-C proof of the C core (verification/proof.py, docs/proof.md).
+
+(a) the committed sources: every WP goal proved, EVA 0 alarms on rg_step and the table check;
+(b) planted bugs in the C voters make the proof fail on the goal of the broken property;
+(c) every contracted function carries its ACSL contract (requires/assigns/ensures).
+No skip when Frama-C is missing: the proof is part of CI (apt-get install frama-c-base why3
+z3 cvc4), so a missing tool is a failure, as it is in `railguard verify`.
+"""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from verification import proof
+from verification.report import Section
+
+SOURCE = (proof.CORE_DIR / "rg_core.c").read_text()
+
+
+@pytest.fixture(scope="module")
+def result():
+    r = proof.run()
+    assert not r["missing"], f"{r.get('error')}: the proof needs Frama-C ({proof.INSTALL_HINT})"
+    return r
+
+
+# ---------------------------------------------------------------- (a) the real sources
+
+def test_all_wp_goals_proved(result):
+    wp = result["wp"]
+    assert wp["returncode"] == 0, wp.get("error")
+    assert wp["failed"] == [], wp["failed_detail"]
+    assert wp["total"] > 150 and wp["proved"] == wp["total"] == wp["summary_total"] == wp["summary_proved"]
+    for fn in (*proof.FUNCTIONS, "rg_step"):
+        f = wp["per_function"][fn]
+        assert f["total"] > 0 and f["proved"] == f["total"], (fn, f)
+    # both SMT provers take part (Qed, WP's simplifier, closes the easy goals itself)
+    assert wp["by_prover"].get("Z3", 0) > 0 and wp["by_prover"].get("CVC4", 0) > 0, wp["by_prover"]
+
+
+def test_eva_no_alarm_on_the_step_and_the_table_check(result):
+    runs = {e["name"]: e for e in result["eva"]}
+    assert set(runs) == {"eva_step-m1", "eva_step-m2", "eva_table-m1"}
+    for name, e in runs.items():
+        assert e["alarms"] == 0, (name, e["alarm_messages"], e["unproved"])
+        assert e["ok"] and e["completed"] and e["clean"], (name, e.get("error"))
+        assert e["preconditions"]["unknown"] == e["preconditions"]["invalid"] == 0, (name, e["preconditions"])
+        assert e["rte_valid"] > 100, (name, e["rte_valid"])
+        assert e["subject_rte_valid"] > 30, (name, e["rte_valid_by_function"])   # rg_step / rg_table_check reached
+    # on the step, EVA leaves the contracts' postconditions and `present_in_range` to WP,
+    # and every one of them is a property WP proved
+    for name in ("eva_step-m1", "eva_step-m2"):
+        assert runs[name]["proved_by_wp"] > len(proof.FUNCTIONS)
+
+
+def test_section_and_checks(result):
+    checks = {c.name: c for c in proof.checks_of(result)}
+    wp = result["wp"]
+    assert checks["proof: all WP goals proved"].passed
+    assert checks["proof: all WP goals proved"].figure == f"{wp['total']}/{wp['total']} goals"
+    assert checks["proof: EVA alarms on rg_step"].passed
+    assert checks["proof: EVA alarms on rg_step"].figure.startswith("0 alarms")
+    assert checks["proof: EVA alarms on the table check"].passed
+    md = proof.markdown(result)
+    assert "frama-c" in md and "rg_vote_2oo2" in md
+
+
+# ---------------------------------------------------------------- (b) planted bugs
+
+def test_planted_bug_2oo2_distance_max_fails_the_proof():
+    """The 2oo2 voter takes the longer of two PRESENT distances: CI must fail."""
+    bug = SOURCE.replace("*distance = da < db ? da : db;", "*distance = da > db ? da : db;")
+    assert bug != SOURCE
+    r = proof.run_modified(bug)
+    wp = r["wp"]
+    assert not r["ok"] and not wp["ok"]
+    assert wp["proved"] < wp["summary_total"]
+    assert wp["failed"], wp
+    assert all(g.startswith("typed_rg_vote_2oo2_ensures") for g in wp["failed"]), wp["failed"]
+    checks = {c.name: c for c in proof.checks_of(r)}
+    assert not checks["proof: all WP goals proved"].passed
+    assert "typed_rg_vote_2oo2_ensures" in checks["proof: all WP goals proved"].figure
+
+
+def test_planted_bug_3oo3_missing_error_term_fails_the_proof():
+    """The 3oo3 voter forgets that modules 2 and 3 may disagree."""
+    bug = SOURCE.replace("s[0] != s[1] || s[1] != s[2] || st == RG_DEGRADED", "s[0] != s[1] || st == RG_DEGRADED")
+    assert bug != SOURCE
+    r = proof.run_modified(bug, functions=("rg_vote_3oo3",))
+    assert not r["ok"]
+    assert r["wp"]["failed"] and all(g.startswith("typed_rg_vote_3oo3_ensures") for g in r["wp"]["failed"])
+
+
+def test_missing_frama_c_is_a_failed_check(monkeypatch, tmp_path):
+    monkeypatch.setattr(proof, "missing_tools", lambda env=None: ["frama-c"])
+    monkeypatch.setenv("CI", "true")
+    sec = proof.section(tmp_path, True, lambda s: None)
+    assert isinstance(sec, Section)
+    names = {c.name: c for c in sec.checks}
+    assert not names["proof: all WP goals proved"].passed and not names["proof: EVA alarms on rg_step"].passed
+    assert "apt-get install frama-c-base why3 z3 cvc4" in names["proof: all WP goals proved"].figure
+
+
+# ---------------------------------------------------------------- (c) the contracts are there
+
+def _contract(function: str) -> str:
+    """The ACSL comment right before the function's definition in rg_core.c."""
+    m = re.search(r"/\*@((?:(?!\*/).)*)\*/\s*\n[^\n;{]*\b" + re.escape(function) + r"\s*\([^;{]*\)\s*\{", SOURCE, re.S)
+    assert m, f"no ACSL contract before the definition of {function}"
+    return m.group(1)
+
+
+@pytest.mark.parametrize("function", proof.FUNCTIONS)
+def test_every_listed_function_has_a_contract(function):
+    spec = _contract(function)
+    assert re.search(r"\bassigns\b", spec), function
+    assert re.search(r"\bensures\b", spec), function
+    takes_pointer = re.search(r"\b" + function + r"\s*\(([^)]*)\)", SOURCE).group(1).count("*") > 0
+    if takes_pointer or function == "rg_braking_distance_dm":
+        assert re.search(r"\brequires\b", spec), function
+
+
+def test_contracts_state_the_python_properties():
+    """Spot checks that the contracts say what the PEP 316 contracts say."""
+    assert r"*status == \max(sa, sb)" in _contract("rg_vote_2oo2")
+    assert r"*distance == \min(da, db)" in _contract("rg_vote_2oo2")
+    assert "*distance == rg_min3(d[0], d[1], d[2])" in _contract("rg_vote_3oo3")
+    assert "s[0] != s[1] || s[1] != s[2] ==> *error == 1" in _contract("rg_vote_3oo3")
+    assert "latched != 0 && speed_cms > 0 ==> \\result == 1 && *final_demand == 2" in _contract("rg_latch")
+    assert "\\result >= envelope && \\result >= table_demand && \\result >= error_demand" in _contract("rg_combine")
+    assert "rg_braking_num(speed_cms, decel_mms2, reaction_ms)" in _contract("rg_braking_distance_dm")
+
+
+def test_planted_runtime_error_is_an_eva_alarm():
+    """rg_is_fresh as it was before the proof (`now - received` overflows int64 for extreme
+    ticks): WP cannot prove its RTE guard and EVA raises an alarm in the step."""
+    old = "    return received <= now && now - received <= timeout_ticks;\n}"
+    start = SOURCE.index("int32_t rg_is_fresh(int64_t received")
+    body = SOURCE.index("{", start)
+    end = SOURCE.index("\n}", body) + 2
+    bug = SOURCE[:body] + "{\n" + old + SOURCE[end:]
+    assert bug != SOURCE and "if (received >= 0)" not in bug
+    r = proof.run_modified(bug, eva=True, eva_runs=proof.EVA_RUNS[:1])
+    assert not r["ok"]
+    assert any("rg_is_fresh_assert_rte_signed_overflow" in g for g in r["wp"]["failed"]), r["wp"]["failed"]
+    step = r["eva"][0]
+    assert step["alarms"] > 0
+    assert any("signed_overflow" in m or "signed overflow" in m for m in step["alarm_messages"]), step["alarm_messages"]
+    checks = {c.name: c for c in proof.checks_of(r)}
+    assert not checks["proof: EVA alarms on rg_step"].passed

@@ -1,0 +1,1514 @@
+"""Fault-injection campaign: every single fault and every pair of faults from a catalogue,
+crossed with obstacle scenarios, through the monitor core, the real runner and codec on the
+virtual bus, and real SocketCAN vcan0 in the user-mode-Linux sandbox.
+
+Core-level runs (the bulk, >= 10,000 in full mode, two processes): a small simulated world
+(the player's train kinematics with the monitor's demand applied, six sensor channels with
+Gaussian distance noise, the obstacle scenario) drives `monitor.core.cycle` directly. Each
+fault acts where it acts in the product:
+
+* value faults (stuck, noise burst, missed detection, contradiction) change a channel's report
+  before it is framed, exactly as `can_bus.player.Player` does;
+* frame faults (CRC corruption, counter freeze and jump, wrong length, babbling) are injected
+  into real frames (`can_bus.codec.Sender`) that go through the real `can_bus.codec.Receiver`
+  from shortly before the fault until after it (healthy frames are latched directly: the
+  receiver accepts every one of them), so the reject counters are the codec's own;
+* silence: no frame; stale timestamps: the report handed to the core carries a tick from the
+  past (older than the timeout) or from the future; deadline overrun: `Inputs.overruns`
+  counts consecutive late cycles and the late cycle's demand reaches the brakes one period
+  late; a corrupted or mismatched table: `cycle.create` must refuse it (ConfigurationError),
+  and the train is then held at the entry under an emergency demand.
+
+Each run counts an *unsafe outcome* (at some cycle a voted obstacle, or a true obstacle,
+inside the emergency braking distance alpha2(v) while the monitor demands less than
+emergency at that cycle and at the next one), crashes (any exception, in the harness, the
+codec's receive path or swallowed by the core's fail-safe), collisions, and false braking (a
+brake demand while no obstacle is within sensor range, or a train held at the entry). Every
+fault kind is shown detected by its named diagnostic in every single-fault run in which it
+manifested.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import random
+import shlex
+import sys
+import tempfile
+import time
+import traceback
+from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+from monitor.core import cycle
+from monitor.core import table as table_mod
+from monitor.core.config import Config, ConfigurationError
+from monitor.core.envelope import braking_distance_dm
+from monitor.core.types import (
+    ABSENT, EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, NORMAL, PRESENT,
+    R_DEADLINE, R_PERCEPTOR, R_STALE, REASON_NAMES, SAFE_STOP, Inputs, Report, Train,
+)
+
+from .report import Check, Progress, Section, md_table
+
+# ----------------------------------------------------------------------------- the catalogue
+
+CHANNEL_KINDS = ("silence", "stuck", "noise_burst", "missed_detection", "bad_crc", "counter_freeze",
+                 "counter_jump", "wrong_length", "babble", "contradiction", "stale_timestamp")
+VALUE_KINDS = ("stuck", "noise_burst", "missed_detection", "contradiction")
+FRAME_KINDS = ("bad_crc", "counter_freeze", "counter_jump", "wrong_length", "babble")
+TABLE_KINDS = ("table_corrupted", "table_mismatch")
+KINDS = CHANNEL_KINDS + ("deadline_overrun",) + TABLE_KINDS
+PLAYER_KINDS = CHANNEL_KINDS            # what can_bus.player injects on a bus
+
+REJECT_OF = {"bad_crc": "bad_crc", "counter_freeze": "repeated_counter", "counter_jump": "counter_jump",
+             "wrong_length": "wrong_length", "babble": "rate_exceeded"}
+
+
+@dataclass(frozen=True)
+class FaultKind:
+    name: str
+    label: str
+    injection: str      # how the campaign injects it
+    diagnostic: str     # what shows that the monitor detected it
+    short: str = ""     # the diagnostic in a few words (check names)
+
+
+CATALOGUE = {f.name: f for f in (
+    FaultKind("silence", "channel silence", "the channel sends nothing during the window",
+              "reason bit `stale`: the channel ages into DEGRADED after `timeout_cycles`", "stale"),
+    FaultKind("stuck", "stuck-at value", "the channel repeats the report it had when the fault began (the player's `stuck`)",
+              "`module_flags` bit of the channel's module (2oo2: ABSENT/PRESENT disagreement or distances more than "
+              "`distance_tolerance_dm` apart)", "module flag"),
+    FaultKind("noise_burst", "noise burst", "distance noise sigma x 50 (0.5 m -> 25 m) on the channel",
+              "`module_flags` bit of the channel's module (distances more than `distance_tolerance_dm` apart)", "module flag"),
+    FaultKind("missed_detection", "missed detection", "the channel reports ABSENT while the obstacle is in range",
+              "`module_flags` bit of the channel's module (ABSENT/PRESENT disagreement)", "module flag"),
+    FaultKind("bad_crc", "CRC corruption", "one byte (or 2-4 bytes) of each real frame XORed after the CRC was applied",
+              "codec reject `bad_crc`, then reason bit `stale`", "bad_crc reject, stale"),
+    FaultKind("counter_freeze", "counter freeze", "the alive counter repeats (the player's `counter_freeze`)",
+              "codec reject `repeated_counter`, then reason bit `stale`", "repeated_counter reject, stale"),
+    FaultKind("counter_jump", "counter jump", "the alive counter skips 1..14 values on every frame",
+              "codec reject `counter_jump`, then reason bit `stale`", "counter_jump reject, stale"),
+    FaultKind("wrong_length", "wrong frame length", "frames cut to 0..7 bytes",
+              "codec reject `wrong_length`, then reason bit `stale`", "wrong_length reject, stale"),
+    FaultKind("babble", "babbling at high rate", "4, 8 or 20 valid frames per period from the channel",
+              "codec reject `rate_exceeded` (quarantine, report withdrawn), then reason bit `stale`", "rate_exceeded reject, stale"),
+    FaultKind("contradiction", "contradiction within a module",
+              "the channel's status flipped: PRESENT -> ABSENT, ABSENT -> a phantom obstacle at 30..900 m",
+              "reason bit `perceptor` (the disagreement persists `persistence_cycles`; mode SAFE_STOP)", "perceptor, SAFE_STOP"),
+    FaultKind("stale_timestamp", "stale timestamps",
+              "the report handed to the core carries a tick older than the timeout, or one from the future",
+              "reason bit `stale` (a report from the past or the future counts as DEGRADED)", "stale"),
+    FaultKind("deadline_overrun", "deadline overrun",
+              "the shell reports consecutive overruns (`Inputs.overruns`); a late cycle's demand reaches the brakes one period late",
+              "reason bit `deadline` (mode SAFE_STOP after `max_overruns` in a row)", "deadline, SAFE_STOP"),
+    FaultKind("table_corrupted", "corrupted table file", "a flipped byte, a flipped digest byte, a truncated file or bad magic",
+              "`ConfigurationError` from `cycle.create`: the monitor refuses to start, the train is held under emergency", "ConfigurationError"),
+    FaultKind("table_mismatch", "mismatched table file",
+              "the other model's table (expect_model), a period that is not the table's time step, a re-hashed table "
+              "claiming the other model, or one with its observations reordered",
+              "`ConfigurationError` from `cycle.create`: the monitor refuses to start, the train is held under emergency", "ConfigurationError"),
+)}
+assert tuple(CATALOGUE) == KINDS
+
+# ----------------------------------------------------------------------------- the world
+
+PERIOD_MS = 100
+RANGE_M = 1000.0
+NOISE_SIGMA_M = 0.5
+BURST_FACTOR = 50.0
+BRAKE_DELAY_S = 0.5
+SERVICE_MPS2, EMERGENCY_MPS2 = 1.0, 3.0
+OBSTACLE_TYPES = ("static", "dynamic", "train")
+ROUTE_BEFORE_S, ROUTE_AFTER_S = 0.3, 0.8     # frame faults: real codec path around the window
+SEEDS = 11          # full mode: 117 combinations x 8 scenarios x 11 seeds = 10,296 core-level runs
+SETTLE_S = 2.0      # a run ends once the train has stood still this long and every fault ended this long ago
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    position_m: float       # ahead of the train's entry point
+    appear_s: float = 0.0   # time after the train's entry
+    speed_mps: float = 0.0  # along the track, same direction as the train
+    type: str = "static"
+
+
+@dataclass(frozen=True)
+class WorldScenario:
+    name: str
+    description: str
+    speed_mps: float
+    duration_s: float
+    obstacles: tuple = ()
+    fault_start_s: tuple = (0.5, 10.0)    # fault windows start in this range (after the entry)
+
+
+SCENARIOS = (
+    WorldScenario("no-obstacle", "clear track, 30 m/s", 30.0, 25.0, (), (0.5, 18.0)),
+    WorldScenario("static-150m-10", "static obstacle 150 m ahead, 10 m/s", 10.0, 60.0, (Obstacle(150.0),), (0.5, 12.0)),
+    WorldScenario("static-300m-20", "static obstacle 300 m ahead, 20 m/s", 20.0, 60.0, (Obstacle(300.0),), (0.5, 10.0)),
+    WorldScenario("static-700m-30", "static obstacle 700 m ahead, 30 m/s", 30.0, 60.0, (Obstacle(700.0),), (0.5, 12.0)),
+    WorldScenario("static-1200m-40", "static obstacle 1200 m ahead, 40 m/s", 40.0, 60.0, (Obstacle(1200.0),), (0.5, 16.0)),
+    WorldScenario("train-ahead", "a train 600 m ahead at 8 m/s, ours at 30 m/s", 30.0, 60.0,
+                  (Obstacle(600.0, 0.0, 8.0, "train"),), (0.5, 12.0)),
+    WorldScenario("vehicle-ahead", "a vehicle 400 m ahead at 3 m/s, ours at 20 m/s", 20.0, 60.0,
+                  (Obstacle(400.0, 0.0, 3.0, "dynamic"),), (0.5, 14.0)),
+    WorldScenario("sudden-120m", "an object appears 120 m ahead (inside alpha2) at 5 s, 30 m/s", 30.0, 20.0,
+                  (Obstacle(270.0, 5.0, 0.0, "static"),), (0.5, 6.0)),
+)
+SCENARIO_BY_NAME = {s.name: s for s in SCENARIOS}
+UNAVOIDABLE = "sudden-120m"      # the object appears inside the emergency braking distance: collisions are physics
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str
+    channel: int            # -1 for faults that are not a channel's
+    start_s: float
+    end_s: float
+    variant: tuple = ()     # kind-specific parameters
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    kinds: tuple            # () fault-free, (k,) single, (k1, k2) pair
+    scenario: str
+    seed: int
+    model: str
+
+    @property
+    def key(self) -> str:
+        return f"{'+'.join(self.kinds) or 'none'}/{self.scenario}/{self.seed}/{self.model}"
+
+
+def combos() -> list[tuple]:
+    """(), every single kind, every pair of distinct kinds, and two channels with the same
+    channel fault."""
+    out = [()] + [(k,) for k in KINDS]
+    for i, a in enumerate(KINDS):
+        for b in KINDS[i:]:
+            if a == b and a not in CHANNEL_KINDS:
+                continue
+            out.append((a, b))
+    return out
+
+
+def plan(quick: bool) -> list[RunSpec]:
+    """Full: every combination x every scenario x SEEDS seeds (m1 and m2 tables alternating).
+    Quick: fault-free and singles x scenarios, plus every pair on a rotating scenario."""
+    specs = []
+    all_combos = combos()
+    if quick:
+        for c in all_combos:
+            if len(c) <= 1:
+                for si, s in enumerate(SCENARIOS):
+                    specs.append(RunSpec(c, s.name, 0, ("m1", "m2")[si % 2]))
+        pairs = [c for c in all_combos if len(c) == 2]
+        for i, c in enumerate(pairs):
+            for j in range(2):
+                s = SCENARIOS[(2 * i + j) % len(SCENARIOS)]
+                specs.append(RunSpec(c, s.name, 1, ("m1", "m2")[(i + j) % 2]))
+        return specs
+    for seed in range(SEEDS):
+        for ci, c in enumerate(all_combos):
+            for si, s in enumerate(SCENARIOS):
+                specs.append(RunSpec(c, s.name, seed, ("m1", "m2")[(seed + si + ci) % 2]))
+    return specs
+
+
+def instantiate(spec: RunSpec, rng: random.Random) -> list[Fault]:
+    """Channels, windows and variants of the faults of one run, drawn from its seed."""
+    scen = SCENARIO_BY_NAME[spec.scenario]
+    chans = [k for k in spec.kinds if k in CHANNEL_KINDS]
+    channels: list[int] = []
+    if len(chans) == 1:
+        channels = [rng.randrange(6)]
+    elif len(chans) == 2:
+        m = rng.randrange(3)
+        a = 2 * m + rng.randrange(2)
+        if rng.random() < 0.5:
+            b = a ^ 1                                   # both channels of one module
+        else:
+            b = 2 * ((m + rng.randrange(1, 3)) % 3) + rng.randrange(2)
+        channels = [a, b]
+    faults = []
+    ci = 0
+    for kind in spec.kinds:
+        lo, hi = scen.fault_start_s
+        start = round(rng.uniform(lo, hi), 1)
+        end = round(start + rng.uniform(1.0, 6.0), 1)
+        ch = -1
+        if kind in CHANNEL_KINDS:
+            ch = channels[ci]
+            ci += 1
+        if kind == "bad_crc":
+            variant = ("multi" if rng.random() < 0.5 else "byte",)
+        elif kind == "counter_jump":
+            variant = (rng.randint(1, 14),)
+        elif kind == "wrong_length":
+            variant = (rng.randint(0, 7),)
+        elif kind == "babble":
+            variant = (rng.choice((4, 8, 20)),)
+        elif kind == "contradiction":
+            variant = (rng.randint(300, 9000),)                 # phantom distance, dm
+        elif kind == "stale_timestamp":
+            variant = ("past", rng.randint(1, 5000)) if rng.random() < 0.5 else ("future", rng.randint(1, 2000))
+        elif kind == "table_corrupted":
+            variant = (rng.choice(("flip", "digest", "truncate", "magic")), rng.random())
+        elif kind == "table_mismatch":
+            variant = (rng.choice(("expect_model", "period", "relabel", "reorder")),)
+        else:
+            variant = ()
+        faults.append(Fault(kind, ch, start, end, variant))
+    return faults
+
+
+# ----------------------------------------------------------------------------- tables
+
+@lru_cache(maxsize=None)
+def shipped_table(model: str) -> bytes:
+    from monitor.tables import read
+
+    return read(model)
+
+
+def faulty_table(fault: Fault, model: str, cfg: Config) -> tuple[bytes, Optional[str], Config]:
+    """(table bytes, expect_model, config) for a table fault; cycle.create must refuse them."""
+    good = shipped_table(model)
+    other = "m2" if model == "m1" else "m1"
+    how = fault.variant[0]
+    if fault.kind == "table_corrupted":
+        pos = int(fault.variant[1] * (len(good) - 1))
+        if how == "flip":                                # a byte of the content: SHA-256 mismatch
+            pos = min(pos, len(good) - 33)
+            data = bytearray(good)
+            data[pos] ^= 0x01 << (pos % 8)
+            return bytes(data), None, cfg
+        if how == "digest":
+            data = bytearray(good)
+            data[len(good) - 1 - pos % 32] ^= 0x80
+            return bytes(data), None, cfg
+        if how == "truncate":
+            return good[: max(0, pos)], None, cfg
+        data = bytearray(good)
+        data[0:8] = b"RGTABLX\n"
+        return bytes(data), None, cfg
+    if how == "expect_model":
+        return shipped_table(other), model, cfg
+    if how == "period":
+        return good, None, cfg._replace(period_ms=2 * cfg.period_ms)
+    t = table_mod.decode(good)
+    header = dict(t.header)
+    if how == "relabel":                                 # valid hash, claims the other model
+        header["model"] = other
+    else:                                                # valid hash, observations reordered
+        header["observations"] = list(reversed(header["observations"]))
+    return table_mod.encode(header, t.action, t.next), None, cfg
+
+
+# ----------------------------------------------------------------------------- one core-level run
+
+@lru_cache(maxsize=8)
+def _shipped_setup(model: str, cfg: Config) -> cycle.Setup:
+    """cycle.create of a shipped table (pure, so one per process is enough)."""
+    return cycle.create(cfg, shipped_table(model))
+
+
+def unsafe_at(inside: list, demands: list) -> list[int]:
+    """The unsafe cycles: an obstacle (voted or true) inside alpha2 at cycle i while the demand
+    is emergency neither at i nor at i + 1 (the last cycle must show it itself)."""
+    n = len(demands)
+    return [i for i in range(n) if inside[i] and demands[i] != EMERGENCY and (i + 1 >= n or demands[i + 1] != EMERGENCY)]
+
+
+def _alpha2(speed_cms: int, cfg: Config) -> int:
+    return braking_distance_dm(min(max(speed_cms, 0), MAX_SPEED_CMS), cfg.emergency_decel_mms2, cfg.reaction_ms)
+
+
+def _core_step():
+    step = getattr(cycle, "_step", None)
+    if step is None:
+        raise RuntimeError("monitor.core.cycle._step is gone: the campaign cannot tell swallowed exceptions apart")
+    return step
+
+
+def simulate(spec: RunSpec, *, config: Optional[Config] = None, table_bytes: Optional[bytes] = None,
+             keep_trace: bool = False) -> dict:
+    """One core-level run. Never raises: an exception anywhere is the run's `crash`."""
+    try:
+        return _simulate(spec, config or Config(), table_bytes, keep_trace)
+    except Exception as exc:  # noqa: BLE001 - a crash is a result of the campaign, not its end
+        return {"key": spec.key, "kinds": spec.kinds, "scenario": spec.scenario, "seed": spec.seed,
+                "model": spec.model, "crash": f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}",
+                "unsafe": 0, "collision": False, "false_braking": False, "faults": [], "cycles": 0}
+
+
+def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_trace: bool) -> dict:
+    from can_bus.codec import OBSTACLE_IDS, Receiver, Sender, report_signals
+
+    rng = random.Random(f"railguard-campaign/{spec.key}")
+    scen = SCENARIO_BY_NAME[spec.scenario]
+    faults = instantiate(spec, rng)
+    period = cfg.period_ms
+    dt = period / 1000.0
+
+    # ---- monitor start-up (a table fault must be refused)
+    data, expect, run_cfg = (table_bytes if table_bytes is not None else shipped_table(spec.model)), None, cfg
+    for f in faults:
+        if f.kind in TABLE_KINDS:
+            data, expect, run_cfg = faulty_table(f, spec.model, cfg)
+    config_error = None
+    setup = None
+    try:
+        if table_bytes is None and not any(f.kind in TABLE_KINDS for f in faults):
+            setup = _shipped_setup(spec.model, cfg)
+        else:
+            setup = cycle.create(run_cfg, data, expect)
+    except ConfigurationError as exc:
+        config_error = str(exc)
+    step = _core_step()
+    state = cycle.initial_state(setup) if setup is not None else None
+
+    # ---- channels and their faults
+    by_channel = defaultdict(list)
+    overrun_faults = [f for f in faults if f.kind == "deadline_overrun"]
+    for f in faults:
+        if f.channel >= 0:
+            by_channel[f.channel].append(f)
+    frame_faults = {ch: [f for f in fs if f.kind in FRAME_KINDS] for ch, fs in by_channel.items()}
+    n_cycles = int(round(scen.duration_s * 1000 / period)) + 40     # room for the wait at the entry
+    seed = int.from_bytes(hashlib.sha256(f"railguard-campaign/{spec.key}/noise".encode()).digest()[:8], "little")
+    noise = np.random.default_rng(seed).standard_normal((n_cycles, 6)).tolist()
+    receiver = Receiver(channels=6, rate_window_ms=period)
+    sender = Sender()
+    latched: list = [None] * 6
+    frozen: dict = {}
+    manifest: dict = {}            # fault index -> first cycle at which it manifested
+    fault_index = {id(f): i for i, f in enumerate(faults)}
+    tol2 = 2 * cfg.distance_tolerance_dm
+    undetected_corrupt = 0
+
+    # ---- world state (the player's kinematics)
+    t = 0.0
+    position = 0.0
+    speed = scen.speed_mps
+    decel = 0.0
+    started = False
+    collision = False
+    impact_speed = None
+    stop_margin = None
+    rate = EMERGENCY_MPS2 / BRAKE_DELAY_S
+    targets = (0.0, SERVICE_MPS2, EMERGENCY_MPS2)
+    obstacles = [(o.position_m, o.appear_s, o.speed_mps, OBSTACLE_TYPES.index(o.type)) for o in scen.obstacles]
+
+    def nearest():
+        best = None
+        for pos, appear, v, typ in obstacles:
+            if t < appear:
+                continue
+            d = pos + v * (t - appear) - position
+            if best is None or d < best[0]:
+                best = (d, v, typ)
+        return best
+
+    demands, inside, reasons_l, flags_l, modes_l = [], [], [], [], []
+    false_braking = False
+    braked = False
+    overruns = 0
+    prev_demand = EMERGENCY
+    core_exceptions = 0
+    trace = [] if keep_trace else None
+    last = None
+    still = 0                                       # cycles at standstill after the entry
+    settle = int(SETTLE_S * 1000 / period)
+    faults_over = max((f.end_s for f in faults if f.kind not in TABLE_KINDS), default=0.0) + SETTLE_S
+    for k in range(n_cycles):
+        if last is not None and k > last:
+            break
+        tick = k * period
+        near = nearest()
+        v_in = min(MAX_SPEED_CMS, round(speed * 100)) if started else 0
+
+        # ---- sensors, faults, frames, latch
+        if near is None or near[0] > RANGE_M or near[0] < 0:
+            absent = True
+        else:
+            absent = False
+            d, ov, typ = near
+            closing = max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round(((speed if started else 0.0) - ov) * 100)))
+        gk = noise[k]
+        if absent:
+            absent_report = Report(ABSENT, 0, 0, 0, tick)
+        for ch in range(6):
+            g = gk[ch]
+            fs = by_channel.get(ch)
+            if fs is None:                       # a healthy channel: its frame would be accepted
+                if absent:
+                    latched[ch] = absent_report
+                else:
+                    x = d + NOISE_SIGMA_M * g
+                    latched[ch] = Report(PRESENT, min(MAX_DISTANCE_DM, round(x * 10)) if x > 0 else 0, closing, typ, tick)
+                continue
+            active = [f for f in fs if f.start_s <= t < f.end_s]
+            kinds = {f.kind for f in active}
+            if absent:
+                clean = rep = (ABSENT, 0, 0, 0)
+            else:
+                clean = rep = (PRESENT, min(MAX_DISTANCE_DM, round(max(0.0, d + NOISE_SIGMA_M * g) * 10)), closing, typ)
+                if "noise_burst" in kinds:
+                    rep = (PRESENT, min(MAX_DISTANCE_DM, round(max(0.0, d + NOISE_SIGMA_M * BURST_FACTOR * g) * 10)),
+                           closing, typ)
+                if "missed_detection" in kinds:
+                    rep = (ABSENT, 0, rep[2], rep[3])
+            if "stuck" in kinds:
+                rep = frozen.setdefault(ch, rep)
+            else:
+                frozen.pop(ch, None)
+            for f in active:
+                if f.kind == "contradiction":
+                    rep = (ABSENT, 0, rep[2], rep[3]) if rep[0] == PRESENT else (PRESENT, rep[1] or f.variant[0], rep[2], rep[3])
+            # manifestation of value faults: the report differs from the fault-free one
+            if rep[0] != clean[0] or (rep[0] == PRESENT and abs(rep[1] - clean[1]) > tol2):
+                for f in active:
+                    if f.kind in VALUE_KINDS:
+                        manifest.setdefault(fault_index[id(f)], k)
+            if "silence" in kinds:
+                for f in active:
+                    if f.kind == "silence":
+                        manifest.setdefault(fault_index[id(f)], k)
+            else:
+                ffs = frame_faults.get(ch)
+                routed = ffs and any(f.start_s - ROUTE_BEFORE_S <= t < f.end_s + ROUTE_AFTER_S for f in ffs)
+                report = Report(rep[0], rep[1], rep[2], rep[3], tick)
+                if not routed:
+                    receiver.reports[ch] = report
+                else:
+                    fid = OBSTACLE_IDS[ch]
+                    copies = 1
+                    for f in active:
+                        if f.kind == "babble":
+                            copies = f.variant[0]
+                    for _ in range(copies):
+                        if "counter_freeze" in kinds and fid in sender.counters:
+                            sender.counters[fid] = (sender.counters[fid] - 1) & 0xF
+                        for f in active:
+                            if f.kind == "counter_jump" and fid in sender.counters:
+                                sender.counters[fid] = (sender.counters[fid] + f.variant[0]) & 0xF
+                        frame = bytearray(sender.frame(fid, report_signals(report, ch)))
+                        for f in active:
+                            if f.kind == "bad_crc":
+                                if f.variant[0] == "byte":
+                                    frame[rng.randrange(8)] ^= rng.randint(1, 255)
+                                else:
+                                    for pos in rng.sample(range(8), rng.randint(2, 4)):
+                                        frame[pos] ^= rng.randint(1, 255)
+                            elif f.kind == "wrong_length":
+                                frame = frame[: f.variant[0]]
+                        before = receiver.rejected_total
+                        name = receiver.accept(fid, bytes(frame), tick)
+                        if "bad_crc" in kinds and name is not None:
+                            undetected_corrupt += 1
+                        if receiver.rejected_total > before:
+                            for f in active:
+                                if f.kind in FRAME_KINDS:
+                                    manifest.setdefault(fault_index[id(f)], k)
+                latched[ch] = receiver.reports[ch]
+                continue
+            latched[ch] = receiver.reports[ch]
+        # stale timestamps act on what the shell hands the core
+        handed = list(latched)
+        for ch, fs in by_channel.items():
+            for f in fs:
+                if f.kind == "stale_timestamp" and f.start_s <= t < f.end_s and handed[ch] is not None:
+                    timeout = cfg.timeout_cycles * period
+                    shift = -(timeout + f.variant[1]) if f.variant[0] == "past" else f.variant[1]
+                    handed[ch] = handed[ch]._replace(tick=tick + shift)
+                    manifest.setdefault(fault_index[id(f)], k)
+
+        overrun_now = any(f.start_s <= t < f.end_s for f in overrun_faults)
+        if overrun_now:
+            manifest.setdefault(fault_index[id(overrun_faults[0])], k)
+
+        # ---- the monitor (or the shell's emergency when it refused to start)
+        if setup is not None:
+            inputs = Inputs(tuple(handed), Train(v_in, 0, 0), overruns)
+            try:
+                state, out = step(setup, state, inputs, tick)
+            except Exception:  # noqa: BLE001 - counted; the product's fail-safe answer is used
+                core_exceptions += 1
+                state, out = cycle.step(setup, state, inputs, tick)
+            demand, mode = out.demand, out.mode
+            voted_in = out.distance_dm != NO_DISTANCE and out.distance_dm <= _alpha2(v_in, cfg)
+            reasons_l.append(out.reasons)
+            flags_l.append(out.module_flags)
+        else:
+            demand, mode, voted_in = EMERGENCY, None, False
+            reasons_l.append(0)
+            flags_l.append(0)
+        overruns = overruns + 1 if overrun_now else 0
+        true_speed_cms = math.ceil(speed * 100) if started else 0
+        true_in = near is not None and near[0] * 10 <= _alpha2(true_speed_cms, cfg)
+        demands.append(demand)
+        inside.append(voted_in or true_in)
+        modes_l.append(mode)
+        in_range = near is not None and 0 <= near[0] <= RANGE_M
+        if started and demand > 0:
+            braked = True
+            if not in_range:
+                false_braking = True
+        if trace is not None:
+            trace.append((tick, t, speed if started else 0.0, None if near is None else near[0], demand, mode,
+                          voted_in, true_in))
+
+        # ---- the world moves with the demand (a late cycle's demand arrives one period late)
+        applied = prev_demand if overrun_now else demand
+        prev_demand = demand
+        if not started and mode == NORMAL and demand == 0:
+            started = True
+        if started and t < scen.duration_s - 1e-9:
+            target = targets[applied]
+            decel += max(-rate * dt, min(rate * dt, target - decel))
+            new_speed = max(0.0, speed - decel * dt)
+            position += (speed + new_speed) / 2 * dt
+            speed = new_speed
+            t += dt
+            hit = nearest()
+            if hit is not None and hit[0] <= 0:
+                collision = True
+                impact_speed = new_speed
+                speed = 0.0
+                break
+            if hit is not None and speed == 0.0 and stop_margin is None:
+                stop_margin = hit[0]
+        if started and speed == 0.0:
+            still += 1
+        else:
+            still = 0
+        if last is None and started and (t >= scen.duration_s - 1e-9 or (still >= settle and t >= faults_over)):
+            last = k + 1                 # one more cycle, so that the last one evaluated has its successor
+
+    n = len(demands)
+    unsafe_cycles = unsafe_at(inside, demands)
+    if setup is None:
+        false_braking = True            # held at the entry by the shell's emergency demand
+
+    # ---- detection of each fault
+    seen_bits = 0
+    for r in reasons_l:
+        seen_bits |= r
+    fault_out = []
+    for i, f in enumerate(faults):
+        first = manifest.get(i)
+        detected, diag_cycle = False, None
+        if f.kind in TABLE_KINDS:
+            detected = config_error is not None
+            first = 0
+        elif first is not None and setup is not None:
+            diag_cycle = _first_diagnostic(f, first, reasons_l, flags_l, modes_l, receiver)
+            detected = diag_cycle is not None
+        elif setup is None:
+            first = None                 # the monitor never ran: nothing to manifest in
+        fault_out.append({"kind": f.kind, "channel": f.channel, "start_s": f.start_s, "end_s": f.end_s,
+                          "variant": list(f.variant), "manifest_cycle": first,
+                          "detected": detected, "latency_cycles": None if diag_cycle is None or first is None
+                          else diag_cycle - first})
+    res = {
+        "key": spec.key, "kinds": spec.kinds, "scenario": spec.scenario, "seed": spec.seed, "model": spec.model,
+        "cycles": n, "unsafe": len(unsafe_cycles),
+        "unsafe_first": None if not unsafe_cycles else _describe(unsafe_cycles[0], trace, demands, inside),
+        "crash": None, "core_exceptions": core_exceptions, "undecodable": receiver.rejected.get("undecodable", 0),
+        "collision": collision, "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
+        "false_braking": false_braking, "braked": braked, "entered": started,
+        "stop_margin_m": None if stop_margin is None else round(stop_margin, 2),
+        "rejects": dict(receiver.rejected), "corrupt_frames_accepted": undetected_corrupt,
+        "config_error": config_error, "reasons_seen": [REASON_NAMES[b] for b in range(len(REASON_NAMES)) if seen_bits >> b & 1],
+        "safe_stop": SAFE_STOP in modes_l, "faults": fault_out,
+    }
+    if core_exceptions:
+        res["crash"] = f"{core_exceptions} exception(s) inside the core, answered by its fail-safe"
+    elif res["undecodable"]:
+        res["crash"] = f"{res['undecodable']} exception(s) in the receive path (codec 'undecodable')"
+    if trace is not None:
+        res["trace"] = trace
+    return res
+
+
+def _describe(i: int, trace, demands, inside) -> dict:
+    d = {"cycle": i, "demand": demands[i], "next_demand": demands[i + 1] if i + 1 < len(demands) else None}
+    if trace is not None:
+        tick, t, v, dist, _, mode, voted_in, true_in = trace[i]
+        d.update(tick=tick, t_s=round(t, 2), speed_mps=round(v, 2), true_distance_m=None if dist is None else round(dist, 2),
+                 mode=mode, voted_inside=voted_in, true_inside=true_in)
+    return d
+
+
+def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receiver) -> Optional[int]:
+    """The first cycle at or after `first` that shows the fault kind's named diagnostic."""
+    n = len(reasons_l)
+    if f.kind in ("silence", "stale_timestamp"):
+        return next((i for i in range(first, n) if reasons_l[i] & R_STALE), None)
+    if f.kind in ("stuck", "noise_burst", "missed_detection"):
+        bit = 1 << (f.channel // 2)
+        return next((i for i in range(first, n) if flags_l[i] & bit), None)
+    if f.kind == "contradiction":
+        return next((i for i in range(first, n) if reasons_l[i] & R_PERCEPTOR), None)
+    if f.kind in FRAME_KINDS:
+        if receiver.rejected.get(REJECT_OF[f.kind], 0) == 0:
+            return None
+        return next((i for i in range(first, n) if reasons_l[i] & R_STALE), None)
+    if f.kind == "deadline_overrun":
+        return next((i for i in range(first, n) if reasons_l[i] & R_DEADLINE and modes_l[i] == SAFE_STOP), None)
+    return None
+
+
+def _work(specs: list) -> list:
+    out = []
+    for spec in specs:
+        r = simulate(spec)
+        r.pop("trace", None)
+        out.append(r)
+    return out
+
+
+def run_core(specs: list[RunSpec], progress: Progress, workers: int = 0) -> list[dict]:
+    """Every spec through `simulate`, in parallel processes (order kept)."""
+    workers = workers or max(1, min(2, os.cpu_count() or 1))
+    chunk = 40
+    chunks = [specs[i:i + chunk] for i in range(0, len(specs), chunk)]
+    results: list = []
+    if workers == 1 or len(chunks) == 1:
+        for c in chunks:
+            results.extend(_work(c))
+        return results
+    done = 0
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for res in pool.map(_work, chunks):
+            results.extend(res)
+            done += len(res)
+            if done % 2000 < chunk:
+                progress(f"campaign: {done:,} of {len(specs):,} core runs ({time.perf_counter() - t0:.0f} s)")
+    return results
+
+
+# ----------------------------------------------------------------------------- the bus samples
+
+@dataclass(frozen=True)
+class BusSpec:
+    """One run through the real MonitorRunner, codec and Player on a bus."""
+
+    name: str
+    scenario: str
+    faults: tuple           # Fault instances (player kinds, deadline_overrun or a table fault)
+    model: str = "m1"
+    seed: int = 1
+    detection: bool = False  # a run whose faults are placed so that each must be detected
+    duration_s: Optional[float] = None
+
+    @property
+    def kinds(self) -> tuple:
+        return tuple(f.kind for f in self.faults)
+
+
+def bus_scenario(spec: BusSpec):
+    """The world scenario as a can_bus Scenario for the Player (same obstacles, noise, faults)."""
+    from can_bus.scenario import FaultSpec, ObstacleSpec, Scenario, SensorSpec, TrainSpec, check
+
+    w = SCENARIO_BY_NAME[spec.scenario]
+    faults = []
+    for f in spec.faults:
+        if f.kind in PLAYER_KINDS:
+            rate = f.variant[0] if f.kind == "babble" and f.variant else 20
+            faults.append(FaultSpec(f.kind, f.channel, float(f.start_s), float(f.end_s), rate))
+    scen = Scenario(
+        name=spec.name, description=w.description, duration_s=spec.duration_s or w.duration_s,
+        train=TrainSpec(w.speed_mps, SERVICE_MPS2, EMERGENCY_MPS2, BRAKE_DELAY_S),
+        obstacles=tuple(ObstacleSpec(o.position_m, o.appear_s, o.speed_mps, o.type) for o in w.obstacles),
+        sensors=SensorSpec(RANGE_M, NOISE_SIGMA_M, 0.0, spec.seed), faults=tuple(faults))
+    check(scen)
+    return scen
+
+
+def bus_plan(quick: bool) -> list[BusSpec]:
+    """Full: every player fault kind and the deadline overrun on a detection run (static
+    obstacle in sight, train at speed during the fault) and on three other scenarios, a few
+    pairs, and both table faults: 58 runs. Quick: the detection runs and the table faults."""
+    kinds = PLAYER_KINDS + ("deadline_overrun",)
+    specs = []
+    for i, kind in enumerate(kinds):
+        variant = (20,) if kind == "babble" else ()
+        specs.append(BusSpec(f"bus-{kind}-detect", "static-700m-30", (Fault(kind, i % 6, 1.0, 4.0, variant),),
+                             "m1" if i % 2 == 0 else "m2", 10 + i, True, 20.0))
+    for t in TABLE_KINDS:
+        specs.append(BusSpec(f"bus-{t}", "static-300m-20", (Fault(t, -1, 0.0, 0.0, ("flip", 0.5) if t == "table_corrupted"
+                                                                 else ("expect_model",)),), "m1", 1, True, 5.0))
+    if quick:
+        return specs
+    others = ("no-obstacle", "train-ahead", "sudden-120m")
+    for j, scen in enumerate(others):
+        for i, kind in enumerate(kinds):
+            variant = (12,) if kind == "babble" else ()
+            start = (2.0, 3.0, 4.0)[j]
+            specs.append(BusSpec(f"bus-{kind}-{scen}", scen, (Fault(kind, (i + j) % 6, start, start + 3.0, variant),),
+                                 ("m1", "m2")[(i + j) % 2], 30 + 20 * j + i, False, 20.0))
+    pairs = (("silence", 0, "silence", 1), ("stuck", 2, "missed_detection", 4), ("bad_crc", 1, "babble", 3),
+             ("contradiction", 4, "noise_burst", 5), ("counter_freeze", 0, "stale_timestamp", 1),
+             ("wrong_length", 2, "deadline_overrun", -1), ("counter_jump", 3, "counter_jump", 2),
+             ("stuck", 0, "stuck", 1))
+    for i, (a, ca, b, cb) in enumerate(pairs):
+        scen = ("static-300m-20", "vehicle-ahead", "static-1200m-40", "no-obstacle")[i % 4]
+        specs.append(BusSpec(f"bus-{a}+{b}-{scen}", scen, (Fault(a, ca, 1.5, 5.0), Fault(b, cb, 3.0, 7.0)),
+                             ("m1", "m2")[i % 2], 80 + i, False, 25.0))
+    return specs
+
+
+def _counting_core():
+    """Patch monitor.core.cycle.step (which the runner calls) so that exceptions swallowed by
+    the core's fail-safe are counted; returns (counter, restore)."""
+    original = cycle.step
+    inner = _core_step()
+    counter = [0]
+
+    def counting(setup, state, inputs, tick):
+        try:
+            return inner(setup, state, inputs, tick)
+        except Exception:  # noqa: BLE001 - counted as a crash; the fail-safe answer is used
+            counter[0] += 1
+            return original(setup, state, inputs, tick)
+
+    cycle.step = counting
+
+    def restore() -> None:
+        cycle.step = original
+
+    return counter, restore
+
+
+def bus_run(spec: BusSpec) -> dict:
+    """One run on python-can's virtual bus (simulated clock): `can_bus.session.run_virtual`
+    for the player's faults; the same loop with a clock that makes cycles finish late for the
+    deadline overrun; a refused table leaves the Player alone on the bus."""
+    import can
+
+    from can_bus import session
+    from can_bus.clock import SimClock
+    from can_bus.player import Player
+    from can_bus.runner import MonitorRunner
+
+    out = {"name": spec.name, "kinds": spec.kinds, "scenario": spec.scenario, "model": spec.model,
+           "detection_run": spec.detection, "crash": None, "unsafe": 0, "collision": False, "false_braking": False}
+    counter, restore = _counting_core()
+    try:
+        scen = bus_scenario(spec)
+        cfg = Config()
+        data, expect, run_cfg = shipped_table(spec.model), None, cfg
+        for f in spec.faults:
+            if f.kind in TABLE_KINDS:
+                data, expect, run_cfg = faulty_table(f, spec.model, cfg)
+        try:
+            setup = cycle.create(run_cfg, data, expect)
+        except ConfigurationError as exc:
+            out["config_error"] = str(exc)
+            bus = can.Bus(interface="virtual", channel=f"campaign-{os.getpid()}-{spec.name}", receive_own_messages=False)
+            try:
+                player = Player(bus, scen, cfg.period_ms)
+                for i in range(int(scen.duration_s * 1000 / cfg.period_ms)):
+                    player.step(i * cfg.period_ms)
+            finally:
+                bus.shutdown()
+            out.update(player.outcome(), entered=player.started, collision=player.collision,
+                       false_braking=True, cycles=len(player.trace), detected={f.kind: True for f in spec.faults})
+            return out
+        overrun = [f for f in spec.faults if f.kind == "deadline_overrun"]
+        with tempfile.TemporaryDirectory(prefix="railguard-campaign-") as tmp:
+            if not overrun:
+                res = session.run_virtual(setup, scen, Path(tmp), plot=False)
+                runner, player = res.runner, res.player
+            else:
+                clock = SimClock()
+                buses = [can.Bus(interface="virtual", channel=f"campaign-{os.getpid()}-{spec.name}",
+                                 receive_own_messages=False) for _ in range(2)]
+                try:
+                    runner = MonitorRunner(buses[0], setup, clock)
+                    player = Player(buses[1], scen, cfg.period_ms)
+                    late = {"ms": 0}
+                    base_now = clock.now_ms
+                    clock.now_ms = lambda: base_now() + late["ms"]          # the cycle "ends" late
+                    tick = 0
+                    for _ in range(int(scen.duration_s * 1000 / cfg.period_ms) + 600):
+                        clock.sleep_until_ms(tick)
+                        player.step(tick)
+                        runner.drain()
+                        if any(f.start_s <= player.t < f.end_s for f in overrun):
+                            late["ms"] = cfg.period_ms + 20
+                        runner.cycle()
+                        late["ms"] = 0
+                        if player.finished:
+                            break
+                        tick += cfg.period_ms
+                finally:
+                    for b in buses:
+                        b.shutdown()
+        out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None, cfg))
+        out.update(player.outcome(), collision=player.collision, entered=player.started)
+        out["rejects"] = dict(runner.receiver.rejected)
+        out["deadline_misses"] = runner.deadline_misses
+        out["faults_injected"] = sorted(f"{k}@ch{c}" for k, c in player.faults_injected)
+        out["detected"] = bus_detection(spec.faults, runner.records, runner.receiver.rejected)
+        problems = []
+        if counter[0]:
+            problems.append(f"{counter[0]} exception(s) inside the core")
+        if runner.receiver.rejected.get("undecodable"):
+            problems.append(f"{runner.receiver.rejected['undecodable']} exception(s) in the receive path")
+        out["crash"] = "; ".join(problems) or None
+    except Exception as exc:  # noqa: BLE001 - a crash is a result
+        out["crash"] = f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}"
+    finally:
+        restore()
+    return out
+
+
+def evaluate_bus(records, trace, trace_ticks, cfg: Config) -> dict:
+    """Unsafe cycles, false braking and the demand history of a run on a bus.
+
+    `records` are the runner's CycleRecords; `trace` the player's (t_s, speed_mps,
+    distance_m) rows. On the virtual bus row i is the world the reports of cycle i came from;
+    on a real bus (`trace_ticks` given) the row of cycle i is the newest one stepped at or
+    before its tick."""
+    import bisect
+
+    rows = []
+    for i, rec in enumerate(records):
+        if trace_ticks is None:
+            j = i if i < len(trace) else None
+        else:
+            j = bisect.bisect_right(trace_ticks, rec.tick) - 1
+            j = j if j >= 0 else None
+        rows.append(trace[j] if j is not None else None)
+    cut = next((i for i, row in enumerate(rows) if row is not None and row[2] is not None and row[2] <= 0), None)
+    if cut is not None:                      # a collision: the world ends there, as in the core-level runs
+        records, rows = records[:cut], rows[:cut]
+    inside = []
+    false_braking = False
+    entered = False
+    for rec, row in zip(records, rows):
+        v_in = MAX_SPEED_CMS if rec.speed_cms is None else rec.speed_cms
+        voted = rec.distance_dm != NO_DISTANCE and rec.distance_dm <= _alpha2(v_in, cfg)
+        true = False
+        if row is not None and row[2] is not None:
+            true = row[2] * 10 <= _alpha2(math.ceil(row[1] * 100), cfg)
+        inside.append(voted or true)
+        if row is not None and row[1] > 0:
+            entered = True
+        if entered and rec.demand > 0 and (row is None or row[2] is None or row[2] > RANGE_M):
+            false_braking = True
+    demands = [r.demand for r in records]
+    n = len(demands)
+    unsafe = unsafe_at(inside, demands)
+    return {"cycles": n, "unsafe": len(unsafe), "unsafe_first": None if not unsafe else
+            {"cycle": unsafe[0], "tick": records[unsafe[0]].tick, "demand": demands[unsafe[0]], "row": rows[unsafe[0]]},
+            "false_braking": false_braking or not entered}
+
+
+def bus_detection(faults, records, rejected) -> dict:
+    """Per fault kind of a bus run: was its diagnostic seen? (The player's `stale_timestamp`
+    replays a report from 10 periods earlier with a fresh frame, so on the bus it shows as a
+    2oo2 disagreement, not as a stale channel.)"""
+    seen = 0
+    flags = 0
+    modes = set()
+    for r in records:
+        seen |= r.reasons
+        flags |= r.module_flags
+        modes.add(r.mode)
+    out = {}
+    for f in faults:
+        k = f.kind
+        if k == "silence":
+            ok = bool(seen & R_STALE)
+        elif k in ("stuck", "noise_burst", "missed_detection", "stale_timestamp"):
+            ok = bool(flags & (1 << (f.channel // 2)))
+        elif k == "contradiction":
+            ok = bool(seen & R_PERCEPTOR)
+        elif k in FRAME_KINDS:
+            ok = rejected.get(REJECT_OF[k], 0) > 0 and bool(seen & R_STALE)
+        elif k == "deadline_overrun":
+            ok = bool(seen & R_DEADLINE) and SAFE_STOP in modes
+        else:
+            ok = False
+        out[k] = out.get(k, True) and ok
+    return out
+
+
+def _bus_work(specs: list) -> list:
+    return [bus_run(s) for s in specs]
+
+
+# ----------------------------------------------------------------------------- vcan0 in the sandbox
+
+VCAN_SCENARIO = "static-300m-20"
+
+
+def vcan_plan(quick: bool) -> list[BusSpec]:
+    kinds = (("silence", 2), ("bad_crc", 0), ("babble", 3), ("counter_jump", 4), ("contradiction", 1))
+    specs = [BusSpec(f"vcan-{k}", VCAN_SCENARIO, (Fault(k, ch, 1.5, 3.5, (20,) if k == "babble" else ()),),
+                     ("m1", "m2")[i % 2], 40 + i, True, 9.0) for i, (k, ch) in enumerate(kinds)]
+    return specs[:1] if quick else specs
+
+
+def vcan_guest(spec_path: str, out_dir: str) -> int:
+    """Runs inside the sandbox: each session is the monitor (MonitorRunner, wall clock) and
+    the Player (in a thread, as `railguard run` does) on the real SocketCAN vcan0; writes one
+    JSON file per session."""
+    import threading
+
+    import can
+
+    from can_bus.clock import WallClock
+    from can_bus.player import Player
+    from can_bus.runner import MonitorRunner
+
+    from can_bus.codec import Receiver, Sender, database
+
+    specs = json.loads(Path(spec_path).read_text())
+    out = Path(out_dir)
+    # warm up (parse the DBC, encode and check every message once, build the setups) so that
+    # the first session does not start with a cold process, as a deployed monitor would not
+    rx, tx = Receiver(rate_window_ms=0), Sender()
+    for msg in database().messages:
+        rx.accept(msg.frame_id, tx.frame(msg.frame_id, {}), 0)
+    for raw in specs:
+        cycle.create(Config(), shipped_table(raw["model"]))
+    bus_kwargs = {"interface": "socketcan", "channel": "vcan0"}
+    for i, raw in enumerate(specs):
+        spec = BusSpec(raw["name"], raw["scenario"], tuple(Fault(*f[:4], tuple(f[4])) for f in raw["faults"]),
+                       raw["model"], raw["seed"], raw["detection"], raw["duration_s"])
+        result = {"name": spec.name}
+        counter, restore = _counting_core()
+        try:
+            scen = bus_scenario(spec)
+            setup = cycle.create(Config(), shipped_table(spec.model))
+            clock = WallClock()
+            mon_bus, player_bus = can.Bus(**bus_kwargs), can.Bus(**bus_kwargs)
+            stop = threading.Event()
+            player = Player(player_bus, scen, setup.config.period_ms)
+            steps: list = []
+
+            def play() -> None:
+                tick = clock.now_ms()
+                while not stop.is_set() and not player.finished:
+                    clock.sleep_until_ms(tick)
+                    player.step(tick)
+                    steps.append(tick)
+                    tick += player.period_ms
+
+            try:
+                runner = MonitorRunner(mon_bus, setup, clock)
+                thread = threading.Thread(target=play, daemon=True)
+                thread.start()
+                limit = int((scen.duration_s + 10) * 1000 / setup.config.period_ms)
+                for _ in range(limit):
+                    runner.drain(runner.next_tick)
+                    clock.sleep_until_ms(runner.next_tick)
+                    runner.cycle()
+                    if player.finished:
+                        break
+                stop.set()
+                runner.send_final_emergency()
+                thread.join(timeout=2)
+            finally:
+                mon_bus.shutdown()
+                player_bus.shutdown()
+            n = min(len(steps), len(player.trace))
+            result.update(
+                records=[[r.tick, r.demand, r.reasons, r.mode, r.node, r.distance_dm, r.module_flags, r.system_error,
+                          r.speed_cms] for r in runner.records],
+                trace=[[row.t_s, row.speed_mps, row.distance_m] for row in player.trace[:n]], trace_ticks=steps[:n],
+                outcome=player.outcome(), collision=player.collision, entered=player.started,
+                rejects=dict(runner.receiver.rejected), deadline_misses=runner.deadline_misses,
+                frames_received=runner.frames_received, core_exceptions=counter[0],
+                faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
+        except Exception as exc:  # noqa: BLE001 - reported to the host as the session's crash
+            result["error"] = f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}"
+        finally:
+            restore()
+        (out / f"session-{i}.json").write_text(json.dumps(result))
+    return 0
+
+
+def vcan_sample(specs: list[BusSpec], progress: Progress) -> dict:
+    """Boot the sandbox once and run every session in it; evaluate them on the host."""
+    from can_bus import vcan
+    from can_bus.runner import CycleRecord
+
+    root = Path(__file__).resolve().parents[1]
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="railguard-campaign-vcan-") as tmp:
+        spec_path = Path(tmp) / "sessions.json"
+        spec_path.write_text(json.dumps([{"name": s.name, "scenario": s.scenario, "model": s.model, "seed": s.seed,
+                                          "detection": s.detection, "duration_s": s.duration_s,
+                                          "faults": [[f.kind, f.channel, f.start_s, f.end_s, list(f.variant)]
+                                                     for f in s.faults]} for s in specs]))
+        script = Path(tmp) / "sessions.sh"
+        script.write_text("set -u\n" + f"{shlex.quote(sys.executable)} -m verification.campaign --vcan-guest "
+                          f"{shlex.quote(str(spec_path))} {shlex.quote(tmp)}\n")
+        budget = 40.0 + sum((s.duration_s or 20.0) + 6.0 for s in specs)
+        progress(f"campaign: {len(specs)} session(s) on vcan0 in the user-mode-Linux sandbox (up to {budget:.0f} s)")
+        res = vcan.run(["sh", str(script)], timeout=budget, cwd=root, env={"PYTHONPATH": str(root)})
+        runs = []
+        for i, spec in enumerate(specs):
+            p = Path(tmp) / f"session-{i}.json"
+            if not p.exists():
+                runs.append({"name": spec.name, "kinds": spec.kinds, "crash": "session did not finish "
+                             f"(timed out: {res.timed_out}; stderr: {res.stderr.strip()[-300:]})", "unsafe": 0,
+                             "collision": False, "false_braking": False, "detected": {}})
+                continue
+            raw = json.loads(p.read_text())
+            run = {"name": spec.name, "kinds": spec.kinds, "scenario": spec.scenario, "model": spec.model,
+                   "crash": raw.get("error"), "unsafe": 0, "collision": False, "false_braking": False, "detected": {}}
+            if "records" in raw:
+                records = [CycleRecord(*r) for r in raw["records"]]
+                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], Config()))
+                run.update(raw["outcome"], collision=raw["collision"], entered=raw["entered"], rejects=raw["rejects"],
+                           deadline_misses=raw["deadline_misses"], frames_received=raw["frames_received"],
+                           faults_injected=raw["faults_injected"])
+                run["detected"] = bus_detection(spec.faults, records, raw["rejects"])
+                problems = [run["crash"]] if run["crash"] else []
+                if raw["core_exceptions"]:
+                    problems.append(f"{raw['core_exceptions']} exception(s) inside the core")
+                if raw["rejects"].get("undecodable"):
+                    problems.append(f"{raw['rejects']['undecodable']} exception(s) in the receive path")
+                run["crash"] = "; ".join(problems) or None
+            runs.append(run)
+    return {"runs": runs, "seconds": time.perf_counter() - t0, "timed_out": res.timed_out,
+            "returncode": res.returncode}
+
+
+# ----------------------------------------------------------------------------- the campaign
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f} %"
+
+
+def _row_label(kinds: tuple) -> str:
+    return "none" if not kinds else "+".join(kinds)
+
+
+def aggregate(results: list[dict]) -> dict:
+    """Counts over core-level runs: totals, per fault kind (single and in pairs), per
+    scenario, per (fault kind, scenario), detection per kind."""
+    def blank():
+        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "crashes": 0, "collisions": 0, "false_braking": 0}
+
+    def add(cell, r):
+        cell["runs"] += 1
+        cell["unsafe"] += r["unsafe"]
+        cell["unsafe_runs"] += bool(r["unsafe"])
+        cell["crashes"] += r["crash"] is not None
+        cell["collisions"] += bool(r["collision"])
+        cell["false_braking"] += bool(r["false_braking"])
+
+    total = blank()
+    single = defaultdict(blank)        # kind ("none" for fault-free) -> counts
+    paired = defaultdict(blank)        # kind -> counts over pairs that contain it
+    scen = defaultdict(blank)
+    cells = defaultdict(blank)         # (row, scenario): rows "none", kind (single), "pair:kind"
+    models = defaultdict(blank)
+    detection = {k: {"single_runs": 0, "manifest": 0, "detected": 0, "max_latency": 0, "missed": []} for k in KINDS}
+    pair_manifest = pair_detected = 0
+    pair_missed = []
+    margins = defaultdict(list)
+    corrupt_accepted = 0
+    for r in results:
+        add(total, r)
+        add(scen[r["scenario"]], r)
+        add(models[r["model"]], r)
+        corrupt_accepted += r.get("corrupt_frames_accepted", 0)
+        if r.get("stop_margin_m") is not None and not r["kinds"]:
+            margins[r["model"]].append(r["stop_margin_m"])
+        if len(r["kinds"]) <= 1:
+            label = r["kinds"][0] if r["kinds"] else "none"
+            add(single[label], r)
+            add(cells[(label, r["scenario"])], r)
+        else:
+            for k in set(r["kinds"]):
+                add(paired[k], r)
+                add(cells[("pair:" + k, r["scenario"])], r)
+        if len(r["kinds"]) == 1 and r["faults"]:
+            f = r["faults"][0]
+            d = detection[f["kind"]]
+            d["single_runs"] += 1
+            if f["manifest_cycle"] is not None:
+                d["manifest"] += 1
+                if f["detected"]:
+                    d["detected"] += 1
+                    d["max_latency"] = max(d["max_latency"], f["latency_cycles"] or 0)
+                elif len(d["missed"]) < 5:
+                    d["missed"].append(r["key"])
+        elif len(r["kinds"]) == 2 and r["faults"]:
+            if any(f["manifest_cycle"] is not None for f in r["faults"]):
+                pair_manifest += 1
+                if any(f["detected"] for f in r["faults"]):
+                    pair_detected += 1
+                elif len(pair_missed) < 5:
+                    pair_missed.append(r["key"])
+    unsafe_examples = [{"key": r["key"], "first": r["unsafe_first"]} for r in results if r["unsafe"]][:10]
+    crash_examples = [{"key": r["key"], "crash": r["crash"]} for r in results if r["crash"]][:10]
+    rate = total["false_braking"] / total["runs"] if total["runs"] else 0.0
+    return {
+        "runs": total["runs"], "unsafe": total["unsafe_runs"], "unsafe_cycles": total["unsafe"],
+        "crashes": total["crashes"], "collisions": total["collisions"], "false_braking": total["false_braking"],
+        "false_braking_rate": rate, "single": dict(single), "paired": dict(paired), "by_scenario": dict(scen),
+        "by_model": dict(models), "cells": {f"{a}|{b}": v for (a, b), v in cells.items()}, "detection": detection,
+        "pairs": {"manifest": pair_manifest, "detected": pair_detected, "missed": pair_missed},
+        "unsafe_examples": unsafe_examples, "crash_examples": crash_examples,
+        "corrupt_frames_accepted": corrupt_accepted,
+        "fault_free_stop_margin_m": {m: (min(v), max(v)) for m, v in margins.items()},
+    }
+
+
+def _bus_summary(runs: list[dict]) -> dict:
+    kinds_detected: dict = {}
+    for r in runs:
+        if r.get("detection_run", True):
+            for k, ok in (r.get("detected") or {}).items():
+                kinds_detected[k] = kinds_detected.get(k, True) and bool(ok)
+    n = len(runs)
+    fb = sum(bool(r.get("false_braking")) for r in runs)
+    return {"runs": n, "unsafe": sum(bool(r.get("unsafe")) for r in runs),
+            "crashes": sum(r.get("crash") is not None for r in runs),
+            "collisions": sum(bool(r.get("collision")) for r in runs),
+            "collisions_avoidable": sum(bool(r.get("collision")) and r.get("scenario") != UNAVOIDABLE for r in runs),
+            "false_braking": fb,
+            "false_braking_rate": fb / n if n else 0.0, "detected": kinds_detected,
+            "frames_rejected": dict(sum((Counter(r.get("rejects") or {}) for r in runs), Counter())),
+            "unsafe_examples": [{"name": r["name"], "first": r.get("unsafe_first")} for r in runs if r.get("unsafe")][:5],
+            "crash_examples": [{"name": r["name"], "crash": r["crash"]} for r in runs if r.get("crash")][:5]}
+
+
+def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = True, workers: int = 0) -> dict:
+    """The whole campaign; returns its summary (see the module docstring)."""
+    t0 = time.perf_counter()
+    specs = plan(quick)
+    progress(f"campaign: {len(specs):,} core-level runs ({len(combos()) - 1} fault combinations x "
+             f"{len(SCENARIOS)} scenarios{'' if quick else f' x {SEEDS} seeds'})")
+    results = run_core(specs, progress, workers)
+    core = aggregate(results)
+    core["seconds"] = time.perf_counter() - t0
+    progress(f"campaign: core runs done in {core['seconds']:.0f} s: {core['unsafe']} unsafe, {core['crashes']} crashes")
+    summary = {"mode": "quick" if quick else "full", "core": core}
+
+    bus_runs: list = []
+    if bus:
+        t1 = time.perf_counter()
+        bspecs = bus_plan(quick)
+        progress(f"campaign: {len(bspecs)} runs through the runner, codec and player on the virtual bus")
+        w = workers or max(1, min(2, os.cpu_count() or 1))
+        chunks = [bspecs[i::w] for i in range(w)]
+        if w == 1:
+            bus_runs = _bus_work(bspecs)
+        else:
+            with ProcessPoolExecutor(max_workers=w) as pool:
+                for res in pool.map(_bus_work, chunks):
+                    bus_runs.extend(res)
+        summary["bus"] = dict(_bus_summary(bus_runs), seconds=time.perf_counter() - t1,
+                              runs_detail=[{k: v for k, v in r.items() if k != "unsafe_first"} for r in bus_runs])
+    vruns: list = []
+    if vcan_runs:
+        try:
+            v = vcan_sample(vcan_plan(quick), progress)
+            vruns = v["runs"]
+            summary["vcan"] = dict(_bus_summary(vruns), seconds=v["seconds"], timed_out=v["timed_out"], runs_detail=vruns_detail(vruns))
+        except Exception as exc:  # noqa: BLE001 - SandboxError or an unexpected failure: reported, never a crash of the campaign
+            summary["vcan"] = {"runs": 0, "error": f"{type(exc).__name__}: {exc}"}
+    summary["runs"] = core["runs"] + len(bus_runs) + len(vruns)
+    summary["unsafe"] = core["unsafe"] + sum(bool(r.get("unsafe")) for r in bus_runs + vruns)
+    summary["crashes"] = core["crashes"] + sum(r.get("crash") is not None for r in bus_runs + vruns)
+    summary["collisions"] = core["collisions"] + sum(bool(r.get("collision")) for r in bus_runs + vruns)
+    fb = core["false_braking"] + sum(bool(r.get("false_braking")) for r in bus_runs + vruns)
+    summary["false_braking_rate"] = fb / summary["runs"] if summary["runs"] else 0.0
+    summary["detection"] = {k: core["detection"][k]["manifest"] > 0 and core["detection"][k]["detected"] == core["detection"][k]["manifest"]
+                            for k in KINDS}
+    summary["readme_table"] = faults_table(core)
+    summary["seconds"] = time.perf_counter() - t0
+    return summary
+
+
+def vruns_detail(runs: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k not in ("unsafe_first",)} for r in runs]
+
+
+# ----------------------------------------------------------------------------- the report
+
+def _cell(c: dict) -> str:
+    if not c or not c["runs"]:
+        return "-"
+    return f"{c['unsafe_runs']}/{c['crashes']}/{c['collisions']}/{100 * c['false_braking'] / c['runs']:.0f}%"
+
+
+def faults_by_scenarios_table(core: dict, pairs: bool = True) -> str:
+    """Rows: fault-free, each single fault, each fault in pairs; columns: scenarios; cell:
+    unsafe runs / crashes / collisions / false-braking rate."""
+    cells = core["cells"]
+    rows = []
+    labels = [("none", "none (fault-free)")] + [(k, CATALOGUE[k].label) for k in KINDS]
+    if pairs:
+        labels += [("pair:" + k, f"{CATALOGUE[k].label} + another") for k in KINDS]
+    for key, label in labels:
+        row = [label]
+        for s in SCENARIOS:
+            row.append(_cell(cells.get(f"{key}|{s.name}")))
+        rows.append(row)
+    return md_table(["fault \\ scenario"] + [s.name for s in SCENARIOS], rows)
+
+
+def faults_table(core: dict) -> str:
+    """One row per fault kind over all scenarios (the README table)."""
+    rows = []
+    for key in ("none",) + KINDS:
+        c = core["single"].get(key)
+        p = core["paired"].get(key)
+        det = core["detection"].get(key)
+        label = "none (fault-free)" if key == "none" else CATALOGUE[key].label
+        both = {k: (c or {}).get(k, 0) + (p or {}).get(k, 0) for k in ("runs", "unsafe_runs", "crashes", "collisions", "false_braking")}
+        detected = "-" if det is None else f"{det['detected']}/{det['manifest']}"
+        rows.append([label, f"{both['runs']:,}", both["unsafe_runs"], both["crashes"], both["collisions"],
+                     _pct(both["false_braking"] / both["runs"]) if both["runs"] else "-", detected])
+    rows.append(["**all runs**", f"{core['runs']:,}", core["unsafe"], core["crashes"], core["collisions"],
+                 _pct(core["false_braking_rate"]), ""])
+    return md_table(["fault (single or in a pair)", "runs", "unsafe", "crashes", "collisions", "false braking",
+                     "detected (single runs)"], rows)
+
+
+def heatmap(core: dict, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    rows = [("none", "none")] + [(k, CATALOGUE[k].label) for k in KINDS]
+    fig, axes = plt.subplots(1, 2, figsize=(15, 7.5), sharey=True)
+    for ax, prefix, title in ((axes[0], "", "single faults"), (axes[1], "pair:", "the fault in a pair")):
+        grid = np.full((len(rows), len(SCENARIOS)), np.nan)
+        for i, (key, _) in enumerate(rows):
+            k = key if (key == "none" or not prefix) else prefix + key
+            for j, s in enumerate(SCENARIOS):
+                c = core["cells"].get(f"{k}|{s.name}")
+                if c and c["runs"]:
+                    grid[i, j] = c["false_braking"] / c["runs"]
+        im = ax.imshow(grid, vmin=0, vmax=1, cmap="magma_r", aspect="auto")
+        for i in range(grid.shape[0]):
+            for j in range(grid.shape[1]):
+                if not np.isnan(grid[i, j]):
+                    ax.text(j, i, f"{100 * grid[i, j]:.0f}", ha="center", va="center", fontsize=7,
+                            color="white" if grid[i, j] > 0.6 else "black")
+        ax.set_xticks(range(len(SCENARIOS)), [s.name for s in SCENARIOS], rotation=40, ha="right", fontsize=8)
+        ax.set_title(f"false-braking rate (%): {title}")
+    axes[0].set_yticks(range(len(rows)), [label for _, label in rows], fontsize=8)
+    fig.colorbar(im, ax=axes, shrink=0.7, label="runs with false braking")
+    fig.suptitle(f"railguard fault campaign: {core['runs']:,} core-level runs, {core['unsafe']} unsafe, "
+                 f"{core['crashes']} crashes")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def checks(summary: dict) -> list[Check]:
+    core = summary["core"]
+    quick = summary["mode"] == "quick"
+    out = [
+        Check("campaign: no unsafe outcome (core-level runs)", core["unsafe"] == 0,
+              f"{core['unsafe']} unsafe runs ({core['unsafe_cycles']} cycles) in {core['runs']:,} runs",
+              {"examples": core["unsafe_examples"]}),
+        Check("campaign: no crash or exception (core-level runs)", core["crashes"] == 0,
+              f"{core['crashes']} crashes in {core['runs']:,} runs", {"examples": core["crash_examples"]}),
+    ]
+    if not quick:
+        out.append(Check("campaign: at least 10,000 core-level runs (full mode)", core["runs"] >= 10_000,
+                         f"{core['runs']:,} >= 10,000 in {core['seconds']:.0f} s"))
+    avoidable = {name: c["collisions"] for name, c in core["by_scenario"].items() if name != UNAVOIDABLE}
+    out.append(Check(f"campaign: no collision where it was avoidable (every scenario but {UNAVOIDABLE})",
+                     sum(avoidable.values()) == 0,
+                     f"{sum(avoidable.values())} collisions in {sum(core['by_scenario'][n]['runs'] for n in avoidable):,} runs; "
+                     f"{core['by_scenario'].get(UNAVOIDABLE, {}).get('collisions', 0)} in {UNAVOIDABLE} (object inside alpha2)",
+                     {"by_scenario": avoidable}))
+    none = core["single"].get("none", {"runs": 0, "false_braking": 0})
+    out.append(Check("campaign: fault-free runs never brake without an obstacle", none["runs"] > 0 and none["false_braking"] == 0,
+                     f"{none['false_braking']} of {none['runs']} fault-free runs"))
+    for k in KINDS:
+        d = core["detection"][k]
+        ok = d["manifest"] > 0 and d["detected"] == d["manifest"]
+        lat = f", within {d['max_latency']} cycles" if k not in TABLE_KINDS else ""
+        out.append(Check(f"campaign: {k} detected ({CATALOGUE[k].short})", ok,
+                         f"{d['detected']} of {d['manifest']} single-fault runs in which it manifested "
+                         f"({d['single_runs']} runs){lat}", {"missed": d["missed"]}))
+    pr = core["pairs"]
+    out.append(Check("campaign: every pair run with a manifested fault shows a diagnostic", pr["detected"] == pr["manifest"],
+                     f"{pr['detected']} of {pr['manifest']}", {"missed": pr["missed"]}))
+    if "bus" in summary:
+        b = summary["bus"]
+        need = 12 if quick else 50
+        out.append(Check(f"campaign: virtual-bus sample through runner, codec and player (>= {need})",
+                         b["runs"] >= need and b["unsafe"] == 0 and b["crashes"] == 0 and b["collisions_avoidable"] == 0,
+                         f"{b['runs']} runs, {b['unsafe']} unsafe, {b['crashes']} crashes, {b['collisions']} collisions "
+                         f"({b['collisions_avoidable']} outside {UNAVOIDABLE})",
+                         {"unsafe": b["unsafe_examples"], "crashes": b["crash_examples"]}))
+        missing = sorted(k for k in PLAYER_KINDS + ("deadline_overrun",) + TABLE_KINDS if not b["detected"].get(k))
+        out.append(Check("campaign: virtual bus: every injected fault kind detected", not missing,
+                         "all detected" if not missing else f"not detected: {', '.join(missing)}", {"detected": b["detected"]}))
+    if "vcan" in summary:
+        v = summary["vcan"]
+        need = 1 if quick else 5
+        if "error" in v:
+            if os.environ.get("CI") == "true" or not _sandbox_unavailable(v["error"]):
+                out.append(Check(f"campaign: vcan0 sample in the sandbox (>= {need})", False, v["error"]))
+        else:
+            missed = sorted(k for k, ok in v["detected"].items() if not ok)
+            out.append(Check(f"campaign: vcan0 sample in the sandbox (>= {need})",
+                             v["runs"] >= need and v["unsafe"] == 0 and v["crashes"] == 0 and not missed,
+                             f"{v['runs']} runs, {v['unsafe']} unsafe, {v['crashes']} crashes, "
+                             f"faults detected: {len(v['detected']) - len(missed)} of {len(v['detected'])}, {v['seconds']:.0f} s",
+                             {"crashes": v["crash_examples"], "unsafe": v["unsafe_examples"]}))
+    return out
+
+
+def _sandbox_unavailable(error: str) -> bool:
+    return error.startswith("SandboxError") and "apt-get" in error
+
+
+def markdown(summary: dict, figure: Optional[str]) -> str:
+    core = summary["core"]
+    quick = summary["mode"] == "quick"
+    lines = [
+        f"Every single fault and every pair of faults from the catalogue ({len(KINDS)} kinds; "
+        f"{len(combos()) - 1} fault combinations: {len(KINDS)} singles and {len(combos()) - 1 - len(KINDS)} pairs, "
+        "two channels with the same channel fault among them; and the fault-free case) crossed with {len(SCENARIOS)} obstacle "
+        f"scenarios{'' if quick else f' and {SEEDS} seeds'} (channels, windows and variants drawn from each run's seed; "
+        "tables m1 and m2 alternating), through `monitor.core.cycle` in a simulated world: the player's train "
+        f"kinematics (brake build-up {BRAKE_DELAY_S} s, {SERVICE_MPS2:g} and {EMERGENCY_MPS2:g} m/s^2), six channels "
+        f"with {NOISE_SIGMA_M} m Gaussian noise and {RANGE_M:.0f} m range. Frame faults go through the real "
+        "`can_bus.codec.Receiver` with real encoded frames. A sample runs through the real `MonitorRunner`, codec "
+        "and `Player` on the virtual bus, and a few sessions on SocketCAN vcan0 in the user-mode-Linux sandbox.\n",
+        "**Unsafe outcome**: at some cycle a voted obstacle (the monitor's voted distance at the speed it was given) "
+        "or a true obstacle (the world's distance at the true speed, rounded up) at or inside alpha2(v) = "
+        "`braking_distance_dm(v, emergency_decel_mms2, reaction_ms)` while the demand is not emergency at that cycle "
+        "and not at the next one (the last cycle of a run must show it itself). **Crash**: any exception in a run, "
+        "including those the core's fail-safe swallows and those the receive path counts as `undecodable`. "
+        "**False braking**: a brake demand after the train entered while no obstacle is within sensor range, or a "
+        "train held at the entry because the monitor refused to start. `sudden-120m` puts an object inside the "
+        "emergency braking distance: its collisions are physics, not the monitor (no unsafe outcome there).\n",
+        f"**Core-level runs**: {core['runs']:,} in {core['seconds']:.0f} s; unsafe {core['unsafe']}, crashes "
+        f"{core['crashes']}, collisions {core['collisions']}, false braking {core['false_braking']:,} "
+        f"({_pct(core['false_braking_rate'])}). Corrupted frames that passed the CRC-8 (multi-byte corruption) "
+        f"and were accepted: {core['corrupt_frames_accepted']}. Fault-free stop margins: "
+        + ", ".join(f"{m} {a:.1f}..{b:.1f} m" for m, (a, b) in sorted(core["fault_free_stop_margin_m"].items())) + ". "
+        + "; ".join(f"Table {m}: {c['runs']:,} runs, {c['unsafe_runs']} unsafe, {c['crashes']} crashes, "
+                    f"{c['collisions']} collisions, false braking {_pct(c['false_braking'] / c['runs'])}"
+                    for m, c in sorted(core["by_model"].items())) + ".\n",
+        "### Catalogue and detection\n",
+        md_table(["fault", "how it is injected", "diagnostic that shows it", "single runs: detected / manifested",
+                  "max latency (cycles)"],
+                 [[CATALOGUE[k].label + f" (`{k}`)", CATALOGUE[k].injection, CATALOGUE[k].diagnostic,
+                   f"{core['detection'][k]['detected']} / {core['detection'][k]['manifest']}",
+                   "-" if k in TABLE_KINDS else core["detection"][k]["max_latency"]] for k in KINDS]),
+        "\nA value fault *manifests* when the channel's report differs from its fault-free report (status, or "
+        "distance by more than twice `distance_tolerance_dm`); a stuck value that stays true (a clear track, a "
+        "train at standstill) or a missed detection with nothing in range cannot be seen by any monitor and harms "
+        "nothing. Frame faults, silence, stale timestamps and overruns manifest whenever their window is reached; "
+        "table faults always.\n",
+        "### Results per fault\n", faults_table(core),
+        "\n### Faults x scenarios\n",
+        "Cell: unsafe runs / crashes / collisions / false-braking rate.\n",
+        faults_by_scenarios_table(core),
+        "\n### Per scenario\n",
+        md_table(["scenario", "description", "runs", "unsafe", "crashes", "collisions", "false braking"],
+                 [[s.name, s.description, f"{core['by_scenario'][s.name]['runs']:,}", core["by_scenario"][s.name]["unsafe_runs"],
+                   core["by_scenario"][s.name]["crashes"], core["by_scenario"][s.name]["collisions"],
+                   _pct(core["by_scenario"][s.name]["false_braking"] / core["by_scenario"][s.name]["runs"])]
+                  for s in SCENARIOS if s.name in core["by_scenario"]]),
+    ]
+    if figure:
+        lines.append(f"\n![false-braking rate, faults x scenarios]({figure})\n")
+    if "bus" in summary:
+        b = summary["bus"]
+        lines += ["\n### Through the real runner and codec on the virtual bus\n",
+                  f"{b['runs']} runs of `can_bus.session.run_virtual` (the deadline overrun: the same loop with a clock "
+                  "that makes the cycle end 120 ms after its tick; a refused table: the Player alone on the bus) in "
+                  f"{b['seconds']:.0f} s: unsafe {b['unsafe']}, crashes {b['crashes']}, collisions {b['collisions']} "
+                  f"({b['collisions_avoidable']} outside {UNAVOIDABLE}), false braking {_pct(b['false_braking_rate'])}. The player's faults are its "
+                  "own (`can_bus.player`): its `stale_timestamp` replays the report of 10 periods earlier in a fresh "
+                  "frame, so on the bus it shows as a 2oo2 disagreement (module flag) rather than as a stale channel; "
+                  "runs named `-detect` place each fault while the train approaches a static obstacle in sight and must "
+                  "show its diagnostic. Frames rejected by reason: "
+                  + (", ".join(f"{k} {v:,}" for k, v in sorted(b["frames_rejected"].items())) or "none") + ".\n",
+                  md_table(["run", "scenario", "table", "outcome", "unsafe", "crash", "detected"],
+                           [[r["name"], r.get("scenario", ""), r.get("model", ""), r.get("outcome", ""), r.get("unsafe", 0),
+                             "yes" if r.get("crash") else "no",
+                             ", ".join(f"{k} {'yes' if ok else 'NO'}" for k, ok in (r.get("detected") or {}).items())]
+                            for r in b["runs_detail"]])]
+    if "vcan" in summary:
+        v = summary["vcan"]
+        lines.append("\n### On SocketCAN vcan0 (user-mode-Linux sandbox)\n")
+        if "error" in v:
+            lines.append(f"Not run: {v['error']}\n")
+        else:
+            lines += [f"{v['runs']} sessions in one sandbox boot ({v['seconds']:.0f} s): the monitor (`MonitorRunner`, "
+                      "wall clock) and the `Player` in a thread on the real vcan0. Unsafe "
+                      f"{v['unsafe']}, crashes {v['crashes']}, collisions {v['collisions']}.\n",
+                      md_table(["session", "outcome", "margin (m)", "frames received", "rejected", "deadline misses",
+                                "unsafe", "detected"],
+                               [[r["name"], r.get("outcome", r.get("crash", "")), r.get("margin_m"), r.get("frames_received"),
+                                 ", ".join(f"{k} {n}" for k, n in sorted((r.get("rejects") or {}).items())) or "none",
+                                 r.get("deadline_misses"), r.get("unsafe"),
+                                 ", ".join(f"{k} {'yes' if ok else 'NO'}" for k, ok in (r.get("detected") or {}).items())]
+                                for r in v["runs_detail"]])]
+    return "\n".join(lines)
+
+
+def section(out_dir, quick: bool, progress: Progress) -> Section:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = run(quick, progress)
+    fig = heatmap(summary["core"], out / "campaign_false_braking.png")
+    (out / "campaign.json").write_text(json.dumps(summary, indent=1, default=str))
+    return Section("Fault-injection campaign", markdown(summary, fig.name), checks(summary), [fig.name],
+                   summary["seconds"])
+
+
+def main(argv: Optional[list] = None) -> int:
+    import argparse
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["--vcan-guest"]:
+        return vcan_guest(argv[1], argv[2])
+    ap = argparse.ArgumentParser(prog="python -m verification.campaign", description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--out", default="railguard-out/campaign")
+    args = ap.parse_args(argv)
+
+    def progress(msg: str) -> None:
+        if not args.json:
+            print(msg, file=sys.stderr, flush=True)
+
+    sec = section(Path(args.out), args.quick, progress)
+    if args.json:
+        print(json.dumps({"passed": all(c.passed for c in sec.checks),
+                          "checks": [{"name": c.name, "passed": bool(c.passed), "figure": c.figure} for c in sec.checks]}))
+    else:
+        for c in sec.checks:
+            print(c.line())
+    return 0 if all(c.passed for c in sec.checks) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
