@@ -17,7 +17,8 @@
  * Log categories: "logError" (errors, always) and "logDebug" (call trace, only with
  * debug logging on).
  */
-#include "rg_math.h"
+#define RG_FMI_EXIT_INIT "fmi3ExitInitializationMode"
+#include "rg_fmi_shared.h"
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -167,25 +168,6 @@ static double now(const Instance *inst)
     return inst->start_time + (double)inst->steps * FIXED_STEP;
 }
 
-/* Why variable `v` may not be set in state `state` (already one of M_SET), or NULL. */
-static const char *not_settable(const rg_variable *v, unsigned state)
-{
-    if (v->variability == RG_V_CONSTANT)
-        return "is a constant and cannot be set";
-    switch (v->causality) {
-    case RG_C_INPUT:
-        return NULL;
-    case RG_C_PARAMETER:
-        if (v->variability == RG_V_TUNABLE || (state & (S_INSTANTIATED | S_INITIALIZATION_MODE)))
-            return NULL;
-        return "is a fixed parameter and can only be set before fmi3ExitInitializationMode";
-    case RG_C_OUTPUT:
-        return "is an output and cannot be set";
-    default:
-        return "is the independent variable and cannot be set";
-    }
-}
-
 /* All variables are scalars, so nValues must equal nValueReferences; both arrays must
  * exist when there is something to transfer. */
 static int check_arrays(Instance *inst, const char *fn, const fmi3ValueReference vr[], size_t nvr,
@@ -224,7 +206,7 @@ static int check_vrs(Instance *inst, const char *fn, const fmi3ValueReference vr
                  (unsigned)vr[i], type_name(v->type), type_name(type));
             return 0;
         }
-        if (set && (why = not_settable(v, inst->state)) != NULL) {
+        if (set && (why = rg_not_settable(v, (inst->state & (S_INSTANTIATED | S_INITIALIZATION_MODE)) != 0)) != NULL) {
             fail(inst, "%s: variable %s (value reference %u) %s (state %s)", fn, v->name, (unsigned)vr[i],
                  why, state_name(inst));
             return 0;
@@ -244,17 +226,6 @@ static fmi3Status no_such_type(fmi3Instance instance, const char *fn, const char
     if (nvr > 0)
         return fail(inst, "%s: value reference %u: this FMU has no variables of type %s", fn, (unsigned)vr[0], type);
     return fmi3OK;
-}
-
-/* The generated table must satisfy VARIABLES[i].vr == i; checked once per instantiation
- * because every access indexes it by value reference. */
-static int table_ok(void)
-{
-    uint32_t i;
-    for (i = 0; i < N_VARIABLES; i++)
-        if (VARIABLES[i].vr != i || VARIABLES[i].type > RG_T_STRING)
-            return 0;
-    return FIXED_STEP > 0.0;
 }
 
 static void reset_instance(Instance *inst)
@@ -355,7 +326,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                           name, (unsigned long)nRequiredIntermediateVariables);
         return NULL;
     }
-    if (!table_ok()) {
+    if (!rg_variables_ok()) {
         instantiate_error(logMessage, instanceEnvironment,
                           "fmi3InstantiateCoSimulation: %s: inconsistent variable table or FIXED_STEP in this binary",
                           name);
@@ -1025,7 +996,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
                       fmi3Float64 *lastSuccessfulTime)
 {
     Instance *inst = begin(instance, "fmi3DoStep", S_STEP_MODE);
-    double t, h = communicationStepSize, q, rounded, end;
+    double t, h = communicationStepSize, end;
     uint64_t n;
     (void)noSetFMUStatePriorToCurrentPoint; /* no FMU states are kept */
     if (!inst)
@@ -1038,18 +1009,13 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
     *lastSuccessfulTime = t;
-    if (!(rg_fabs(currentCommunicationPoint - t) <= 1e-9 * rg_fmax(1.0, rg_fabs(t))))
+    if (!rg_at_time(currentCommunicationPoint, t))
         return fail(inst, "fmi3DoStep: currentCommunicationPoint %.17g differs from the FMU time %.17g",
                     currentCommunicationPoint, t);
-    /* The model runs on a fixed step: h must be a whole number n >= 1 of FIXED_STEPs
-     * (relative tolerance 1e-9). q < 2^53 keeps n exact and the conversion defined. */
-    q = h / FIXED_STEP;
-    rounded = rg_floor(q + 0.5);
-    if (!(h > 0.0) || !(q < 9007199254740992.0) || rounded < 1.0 ||
-        rg_fabs(h - rounded * FIXED_STEP) > 1e-9 * rg_fmax(1.0, h))
+    n = rg_fixed_steps(h);
+    if (n == 0)
         return fail(inst, "fmi3DoStep: communicationStepSize %.17g is not a positive whole multiple of the fixed step %g",
                     h, FIXED_STEP);
-    n = (uint64_t)rounded;
     if (n > UINT64_MAX - inst->steps)
         return fail(inst, "fmi3DoStep: step count overflow");
     end = inst->start_time + (double)(inst->steps + n) * FIXED_STEP;
