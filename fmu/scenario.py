@@ -45,9 +45,6 @@ class CosimScenario:
     train: dict = field(default_factory=dict)
     monitor: dict = field(default_factory=dict)
 
-    def train_value(self, name: str):
-        return self.train.get(name, _TRAIN_PARAMS[name].start)
-
 
 def _flatten(prefix: str, table: dict) -> dict:
     out = {}

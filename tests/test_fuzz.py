@@ -7,6 +7,7 @@ import can
 import pytest
 
 from can_bus import codec
+from can_bus.clock import SimClock
 from can_bus.codec import Receiver
 from can_bus.runner import MonitorRunner
 from monitor.core import cycle as core
@@ -271,22 +272,10 @@ def test_planted_core_state_outside_its_domain_is_caught(monkeypatch):
 
 # ----------------------------------------------------------------------------- found while fuzzing
 
-class HandClock:
-    """A real-time clock (not simulated) that moves only when the test says so."""
+class HandClock(SimClock):
+    """A clock the runner treats as real time (not simulated) that moves only when the test says so."""
 
     simulated = False
-
-    def __init__(self) -> None:
-        self.ms = 0
-
-    def now_ms(self) -> int:
-        return self.ms
-
-    def now_s(self) -> float:
-        return self.ms / 1000
-
-    def sleep_until_ms(self, tick: int) -> None:
-        self.ms = max(self.ms, tick)
 
 
 class SlowBus(fuzz.FrontDoorBus):
@@ -300,11 +289,11 @@ class SlowBus(fuzz.FrontDoorBus):
 
     def _recv_internal(self, timeout):
         if not self.pending and timeout:
-            self.clock.ms = max(self.clock.ms, self.runner.next_tick)
+            self.clock.sleep_until_ms(self.runner.next_tick)
         return super()._recv_internal(timeout)
 
     def send(self, msg, timeout=None) -> None:
-        self.clock.ms += self.send_ms
+        self.clock.sleep_until_ms(self.clock.now_ms() + self.send_ms)
         super().send(msg)
 
 
