@@ -200,7 +200,10 @@ class CoreMachine(RuleBasedStateMachine):
         present = [i for i, s in enumerate(eff) if s == PRESENT]
         dmin = min((self.reports[i].distance_dm for i in present), default=NO_DISTANCE)
         modules = [max(eff[2 * m], eff[2 * m + 1]) for m in range(cfg.modules)]
-        flags = [eff[2 * m] != eff[2 * m + 1] or DEGRADED in eff[2 * m:2 * m + 2] for m in range(cfg.modules)]
+        flags = [eff[2 * m] != eff[2 * m + 1] or DEGRADED in eff[2 * m:2 * m + 2]
+                 or (eff[2 * m] == eff[2 * m + 1] == PRESENT
+                     and abs(self.reports[2 * m].distance_dm - self.reports[2 * m + 1].distance_dm) > cfg.distance_tolerance_dm)
+                 for m in range(cfg.modules)]
         split = len(set(modules)) > 1
         any_degraded = DEGRADED in eff
         for m in range(cfg.modules):
