@@ -32,6 +32,7 @@ class CycleRecord:
     module_flags: int
     system_error: bool
     speed_cms: Optional[int]
+    warning: bool = False
 
 
 @dataclass
@@ -95,7 +96,8 @@ class MonitorRunner:
             self.overruns = 0
         self.next_tick = tick + self.period
         rec = CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
-                          out.module_flags, out.system_error, None if train is None else train.speed_cms)
+                          out.module_flags, out.system_error, None if train is None else train.speed_cms,
+                          out.warning)
         self.records.append(rec)
         if self.on_cycle is not None:
             self.on_cycle(rec)
@@ -106,8 +108,9 @@ class MonitorRunner:
         flags |= (0b10000 if out.reasons & (1 << 6) else 0) | (0b100000 if out.reasons & (1 << 7) else 0)
         distance = out.distance_dm if out.distance_dm != NO_DISTANCE else 65535
         frames = (
-            (BRAKE_DEMAND_ID, {"Level": out.demand, "Reason": out.reasons & 0xFFFF, "Cycle": out.cycle & 0xFFFFFFFF}),
-            (MONITOR_STATUS_ID, {"Mode": out.mode, "Node": min(out.node, 1023), "ErrorFlags": flags,
+            (BRAKE_DEMAND_ID, {"Level": out.demand, "Warning": int(out.warning), "Reason": out.reasons & 0xFFFF,
+                               "Cycle": out.cycle & 0xFFFFFFFF}),
+            (MONITOR_STATUS_ID, {"Mode": out.mode, "Warning": int(out.warning), "Node": min(out.node, 1023), "ErrorFlags": flags,
                                  "VotedDistance": distance, "TableHash": self.table_hash,
                                  "DeadlineMisses": min(self.deadline_misses, 15)}),
         )

@@ -24,11 +24,13 @@ class UserError(Exception):
 def _user_errors() -> tuple[type[BaseException], ...]:
     from .core.config import ConfigurationError
     from .core.table import TableError
+    from .declaration import DeclarationError
     from .offline.params import ConfigError
     from .offline.pomdp import ModelError
     from .offline.pomdp_file import PomdpFormatError
 
-    errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, OSError]
+    errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, DeclarationError,
+              OSError]
     try:
         import can
 
@@ -152,7 +154,19 @@ def _monitor_setup(args: argparse.Namespace):
         cfg = core_config.from_mapping(values)
     except TypeError as exc:
         raise UserError(f"monitor configuration: {exc}") from None
-    return cycle.create(cfg, _table_bytes(args.table))
+    return cycle.create(_with_braking(cfg, args), _table_bytes(args.table))
+
+
+def _with_braking(cfg, args: argparse.Namespace):
+    """`cfg` with the train's braking declaration from --braking (None: the shipped train's)."""
+    from .declaration import config_with
+
+    return config_with(cfg, getattr(args, "braking", None))
+
+
+BRAKING_HELP = ("the train's braking declaration (TOML, SI units: guaranteed decelerations, build-up "
+                "times, speed error, adhesion factors, gradient, standstill margin; docs/supervision.md); "
+                "default: the papers' train, monitor/trains/papers-train.toml")
 
 
 def _bus_kwargs(args: argparse.Namespace) -> dict | None:
@@ -288,6 +302,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def _add_monitor_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--table", default="m2", metavar="m1|m2|FILE",
                    help="policy table: a shipped model name or a .table.rgt file (default: %(default)s)")
+    p.add_argument("--braking", metavar="FILE.toml", help=BRAKING_HELP)
     p.add_argument("--monitor-config", metavar="FILE.toml",
                    help="monitor configuration ([monitor] table: period_ms, timeout_cycles, decelerations, ... see docs/core.md)")
 
@@ -313,19 +328,22 @@ def _positive_int(text: str) -> int:
 def cmd_build_fmu(args: argparse.Namespace) -> int:
     from fmu import build
 
+    from .core.config import Config
+
+    cfg = _with_braking(Config(), args) if args.braking else None
     if args.ssp is not None:
         from fmu import scenario, ssp
 
         scen = scenario.load(args.ssp or None)
         out = Path(args.out)
-        monitor_fmu = build.build_monitor(_table_bytes(scen.table), 2, out)
+        monitor_fmu = build.build_monitor(_table_bytes(scen.table), 2, out, config=cfg)
         train_fmu = build.build_train(out)
         path = ssp.write(out / f"railguard-{scen.name}.ssp", train_fmu, monitor_fmu, scen.train, scen.monitor,
                          scen.duration_s, name=f"railguard-{scen.name}")
     elif args.train:
         path = build.build_train(args.out)
     else:
-        path = build.build_monitor(_table_bytes(args.model), args.fmi, args.out)
+        path = build.build_monitor(_table_bytes(args.model), args.fmi, args.out, config=cfg)
     print(path)
     return 0
 
@@ -336,11 +354,15 @@ def cmd_cosim(args: argparse.Namespace) -> int:
     from fmu import build, cosim, scenario
 
     scen = scenario.load(args.scenario)
+    if args.braking:
+        from .declaration import load
+
+        scen = scenario.with_braking(scen, load(args.braking), args.braking)
     out = Path(args.out)
     with tempfile.TemporaryDirectory(prefix="railguard-cosim-") as tmp:
         monitor_fmu = args.monitor_fmu or build.build_monitor(_table_bytes(args.table or scen.table), args.fmi, tmp)
         train_fmu = args.train_fmu or build.build_train(tmp)
-        result = cosim.run(monitor_fmu, train_fmu, scen.train, scen.monitor, scen.duration_s, args.step)
+        result = cosim.run_scenario(scen, monitor_fmu, train_fmu, args.step, args.demand_delay)
     csv_path = cosim.write_csv(result, out / f"cosim-{scen.name}.csv")
     plot_path = None if args.no_plot else cosim.plot(result, out / f"cosim-{scen.name}.png",
                                                       f"railguard co-simulation: {scen.name}")
@@ -351,6 +373,9 @@ def cmd_cosim(args: argparse.Namespace) -> int:
         "simulated_s": round(result.simulated_s, 3), "wall_s": round(result.wall_s, 4),
         "realtime_factor": round(result.realtime_factor, 1),
         "first_brake_s": result.first_brake_s, "max_demand": result.max_demand,
+        "demand_delay_cycles": result.demand_delay_cycles,
+        "stop_margin_m": None if result.stop_margin_m is None else round(result.stop_margin_m, 3),
+        "impact_speed": round(result.impact_speed, 3),
         "csv": str(csv_path), "plot": None if plot_path is None else str(plot_path),
     }
     if args.json:
@@ -372,13 +397,16 @@ def _run_evidence(args: argparse.Namespace, parts: tuple[str, ...]) -> int:
     """Run verification parts, print one line per check (or JSON), exit 1 if one fails."""
     from verification import run
 
+    from .core.config import Config
+
     started = time.perf_counter()
 
     def progress(msg: str) -> None:
         if not args.json:
             print(f"[{time.perf_counter() - started:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    sections, report = run.run(args.out, args.quick, progress, parts)
+    cfg = _with_braking(Config(), args) if getattr(args, "braking", None) else None
+    sections, report = run.run(args.out, args.quick, progress, parts, config=cfg)
     checks = [c for s in sections for c in s.checks]
     passed = all(c.passed for c in checks)
     if args.json:
@@ -521,6 +549,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="policy table: shipped m1 or m2, or a .table.rgt file (default: %(default)s)")
     b.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="FMI version (default: %(default)s)")
     b.add_argument("--train", action="store_true", help="build the train-dynamics FMU (FMI 2.0) instead")
+    b.add_argument("--braking", metavar="FILE.toml",
+                   help=BRAKING_HELP + "; it becomes the monitor FMU's parameter start values")
     b.add_argument("--ssp", nargs="?", const="", metavar="SCENARIO",
                    help="build both FMUs and the SSP of the closed loop for a cosim scenario (default: "
                         "static-obstacle); runs with fmpy.ssp.simulate_ssp at a 0.1 s step")
@@ -545,6 +575,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="communication step of the train FMU; must divide 0.1 s (default: %(default)s)")
     c.add_argument("--monitor-fmu", metavar="FILE", help="use this monitor FMU instead of building one")
     c.add_argument("--train-fmu", metavar="FILE", help="use this train FMU instead of building one")
+    c.add_argument("--braking", metavar="FILE.toml", help=BRAKING_HELP + "; replaces the scenario's [braking]")
+    c.add_argument("--demand-delay", type=int, metavar="CYCLES",
+                   help="monitor cycles before the train acts on a demand (default: the scenario's, else 1: as on CAN)")
     c.add_argument("--out", default="railguard-out", metavar="DIR", help="folder for the CSV and the plot (default: %(default)s)")
     c.add_argument("--no-plot", action="store_true", help="do not draw the plot")
     c.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
@@ -560,7 +593,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
     v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
-    v.add_argument("--part", action="append", choices=["closed_loop", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
+    v.add_argument("--part", action="append", choices=["closed_loop", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
                    help="run only this part (repeatable)")
     v.add_argument("--json", action="store_true",
                    help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')
@@ -577,6 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "false braking; writes a report; exit status 1 if a check fails.",
     )
     ca.add_argument("--quick", action="store_true", help="a few hundred runs and 20,000 frames (what CI runs)")
+    ca.add_argument("--braking", metavar="FILE.toml", help=BRAKING_HELP)
     ca.add_argument("--out", default="railguard-out/campaign", metavar="DIR", help="report folder (default: %(default)s)")
     ca.add_argument("--json", action="store_true", help='print {"passed": bool, "checks": [...], ...}')
     ca.set_defaults(func=cmd_campaign)

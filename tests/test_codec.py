@@ -75,7 +75,7 @@ def ref_in_range(frame_id: int, data: bytes) -> bool:
     if frame_id == TRAIN_STATE_ID:
         return field(data, 16, 16) <= 12000
     if frame_id == BRAKE_DEMAND_ID:
-        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 1023
+        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 8191
     return True    # MonitorStatus: every signal spans its full bit width
 
 
@@ -209,7 +209,7 @@ def test_round_trip_latches_exactly_the_report(items):
 
 @settings(max_examples=100, deadline=None)
 @given(speed=st.integers(0, 12000), track=st.integers(0, 1), brake=st.integers(0, 1),
-       level=st.integers(0, 2), reason=st.integers(0, 1023), cyc=st.integers(0, 2**32 - 1),
+       level=st.integers(0, 2), reason=st.integers(0, 8191), cyc=st.integers(0, 2**32 - 1),
        mode=st.integers(0, 3), misses=st.integers(0, 15), dist=st.integers(0, 65535))
 def test_round_trip_other_messages(speed, track, brake, level, reason, cyc, mode, misses, dist):
     sender, rx = Sender(), Receiver()
@@ -359,7 +359,7 @@ def test_out_of_range_train_and_demand_are_rejected():
     assert rx.accept(TRAIN_STATE_ID, encode(TRAIN_STATE_ID, {"Speed": 12001}, 0), 1) is None
     assert rx.train is None and rx.train_tick is None
     assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Level": 3}, 0), 1) is None
-    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 1024}, 1), 1) is None
+    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 8192}, 1), 1) is None
     assert rx.demand is None
     assert rx.rejected["out_of_range"] == 3 and rx.accepted == 0
 
@@ -409,7 +409,7 @@ def _signal_strategy(frame_id: int):
         return st.fixed_dictionaries({"Speed": val(0, 12000, 0, 65535), "TrackCondition": st.integers(0, 1),
                                       "BrakeStatus": st.integers(0, 1)})
     if frame_id == BRAKE_DEMAND_ID:
-        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 1023, 0, 65535),
+        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 8191, 0, 65535), "Warning": st.integers(0, 1),
                                       "Cycle": st.integers(0, 2**32 - 1)})
     return st.fixed_dictionaries({"Mode": st.integers(0, 3), "Node": st.integers(0, 1023),
                                   "ErrorFlags": st.integers(0, 63), "VotedDistance": st.integers(0, 65535),

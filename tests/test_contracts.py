@@ -22,7 +22,10 @@ CORE = ROOT / "monitor" / "core"
 EXPECTED = {
     "voter.py": {"vote_2oo2", "disagreement", "distances_disagree", "vote_3oo3", "vote_single"},
     "freshness.py": {"in_range", "is_fresh", "effective_status"},
-    "envelope.py": {"braking_distance_dm", "zone", "envelope_demand", "combine", "latch"},
+    "envelope.py": {"zone", "supervision_demand", "combine", "latch"},
+    "braking.py": {"scaled_decel_mms2", "effective_decel_mms2", "run_dm", "speed_after_cms", "band_stop",
+                   "obstacle_run_dm"},
+    "config.py": {"gradient_accel_mms2"},
     "observation.py": {"speed_class", "m1_observation", "m2_observation"},
 }
 ARGS = ["check", "--analysis_kind=PEP316,asserts", "--per_condition_timeout=10", "--report_all"]

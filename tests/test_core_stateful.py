@@ -2,7 +2,8 @@
 deadline overruns, with the core's safety invariants checked after every cycle.
 
 The expectations are computed here from the inputs, independently of the core's helpers
-(only `braking_distance_dm`, tested on its own in test_core_cycle.py, is reused).
+(only the braking curves `monitor.core.braking.curves`, tested on their own against exact
+fractions in test_core_cycle.py, are reused).
 """
 from __future__ import annotations
 
@@ -16,10 +17,10 @@ from hypothesis.stateful import RuleBasedStateMachine, rule, run_state_machine_a
 import monitor
 from monitor.core.config import Config
 from monitor.core.cycle import create, initial_state, step
-from monitor.core.envelope import braking_distance_dm
+from monitor.core.braking import curves
 from monitor.core.observation import M2_OBSERVATIONS
 from monitor.core.types import (
-    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE, R_INIT,
+    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE, R_DISPUTE, R_INIT,
     R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR, R_TRAIN_INPUT, SAFE_STOP, Inputs, Report, Train,
 )
 
@@ -107,6 +108,7 @@ class CoreMachine(RuleBasedStateMachine):
         self.overruns = 0
         # model of the past, kept by the test itself
         self.prev_demand = 0
+        self.e_run = 0
         self.prev_moving = False
         self.prev_node = self.table.start
         self.prev_mode = INIT
@@ -152,8 +154,10 @@ class CoreMachine(RuleBasedStateMachine):
     @rule(offset=st.integers(-3, 3), ch=st.integers(0, 5), others=st.sampled_from(["same", "absent", "stale"]))
     def obstacle_near_envelope(self, offset, ch, others):
         """Channel ch (and maybe the others) sees an obstacle right at the emergency braking distance."""
-        v = self.train.speed_cms if train_valid(self.train) else 0
-        d = max(0, braking_distance_dm(v, self.cfg.emergency_decel_mms2, self.cfg.reaction_ms) + offset)
+        valid = train_valid(self.train)
+        v = self.train.speed_cms if valid else 0
+        track, brake = (self.train.track, self.train.brake) if valid else (0, 0)
+        d = max(0, curves(self.cfg, v, track, brake, 100, 0).ebi_dm + offset)
         t = self.next_tick
         for i in range(self.n):
             if others == "same" or i == ch % self.n:
@@ -230,8 +234,11 @@ class CoreMachine(RuleBasedStateMachine):
         assert out.module_flags == sum(1 << m for m, f in enumerate(flags) if f), ctx
         if any(flags) or split or any_degraded:
             assert out.system_error, ctx
-            assert out.demand >= cfg.safe_reaction, ctx
             assert out.reasons & R_SYSTEM_ERROR, ctx
+            if any_degraded:       # a lost channel: the safe reaction (INIT's emergency covers it)
+                assert out.demand >= cfg.safe_reaction, ctx
+            elif valid:            # channels disagree, all fresh: a dispute, answered by a warning
+                assert out.warning and out.reasons & R_DISPUTE, ctx
         if any_degraded:
             assert out.reasons & R_STALE, ctx
         else:
@@ -242,15 +249,28 @@ class CoreMachine(RuleBasedStateMachine):
         if not (any(flags) or split or any_degraded or not valid):
             assert not out.system_error, ctx
 
-        # ---- envelope
+        # ---- curves: the supervision on the voted (shortest) distance
+        if present:
+            closing = max(self.reports[i].closing_cms for i in present)
+            age = max(now - self.reports[i].tick for i in present)
         if valid and dmin != NO_DISTANCE:
             v = self.train.speed_cms
-            if dmin <= braking_distance_dm(v, cfg.emergency_decel_mms2, cfg.reaction_ms):
-                assert out.demand == EMERGENCY, "obstacle inside the emergency braking distance: " + ctx
+            c = curves(cfg, v, self.train.track, self.train.brake, closing, age)
+            if dmin <= c.ebi_dm:
+                assert out.demand == EMERGENCY, "obstacle inside EBI: " + ctx
+            elif dmin <= c.sbi_dm:
+                assert out.demand >= 1, "obstacle inside SBI: " + ctx
+            if dmin <= c.warning_dm:
+                assert out.warning, ctx
 
-        # ---- latch: emergency demanded while moving holds while still moving
-        if self.prev_demand == EMERGENCY and self.prev_moving and moving:
-            assert out.demand == EMERGENCY, "emergency latch released while moving: " + ctx
+        # ---- latch: an emergency demanded while moving holds while still moving, until
+        #      standstill (held) or for at least release_confirm_cycles (revocable)
+        if self.prev_demand == EMERGENCY and self.prev_moving and moving and self.prev_mode != INIT:
+            if cfg.emergency_release == 0:
+                assert out.demand == EMERGENCY, "emergency latch released while moving: " + ctx
+            elif out.demand != EMERGENCY:
+                assert self.e_run >= cfg.release_confirm_cycles, "emergency released too soon: " + ctx
+        self.e_run = self.e_run + 1 if out.demand == EMERGENCY and moving else 0
 
         # ---- modes
         if overrun or perceptor:
@@ -274,9 +294,12 @@ class CoreMachine(RuleBasedStateMachine):
         if out.system_error and out.mode != SAFE_STOP:
             assert out.mode in (INIT, DEGRADED_MODE), ctx
 
-        # ---- table
+        # ---- table (it holds its node during any system error)
         if out.mode == INIT:
             assert out.node == self.table.start, ctx
+        elif out.system_error and out.mode != SAFE_STOP:
+            assert out.node == self.prev_node, ctx
+            assert out.demand >= self.table.action[out.node], ctx
         else:
             assert out.node == self.table.next[self.prev_node][out.observation], ctx
             assert out.demand >= self.table.action[out.node], ctx
@@ -284,9 +307,9 @@ class CoreMachine(RuleBasedStateMachine):
         # ---- observation from the voted picture (valid train only: the speed is known)
         if valid:
             v = self.train.speed_cms
-            a1 = braking_distance_dm(v, cfg.service_decel_mms2, cfg.reaction_ms)
-            a2 = braking_distance_dm(v, cfg.emergency_decel_mms2, cfg.reaction_ms)
-            if out.distance_dm != NO_DISTANCE:
+            if out.distance_dm != NO_DISTANCE:     # the table's zones: normal conditions
+                a2 = curves(cfg, v, 0, 0, closing, age).ebi_dm
+                a1 = max(a2, curves(cfg, v, 0, 0, closing, age, service=True).ebi_dm)
                 d = out.distance_dm
                 zone = 3 if d <= a2 else 2 if d <= a1 else 1 if d <= a1 + cfg.warning_margin_dm else 0
             else:
@@ -320,6 +343,8 @@ CASES = {
     "m1-2oo2-service": ("m1", Config(topology="2oo2", safe_reaction=1, timeout_cycles=2,
                                      persistence_cycles=2, recovery_cycles=3, max_overruns=2)),
     "m2-3oo3-service": ("m2", Config(safe_reaction=1, recovery_cycles=2, persistence_cycles=1)),
+    "m1-3oo3-held": ("m1", Config(emergency_release=0, persistence_cycles=3)),
+    "m2-3oo3-quick-release": ("m2", Config(release_confirm_cycles=1, max_gradient_permille=0, emergency_band2_cms=0)),
 }
 
 

@@ -15,7 +15,8 @@ import pytest
 import monitor
 from monitor.core.config import Config
 from monitor.core.cycle import create, step
-from monitor.core.envelope import braking_distance_dm
+from monitor.core.braking import curves
+from monitor.core.envelope import supervision_demand
 from monitor.core.observation import M1_OBSERVATIONS, M2_OBSERVATIONS
 from monitor.core.table import decode
 from monitor.core.types import (
@@ -42,25 +43,32 @@ def setup(request):
 
 
 def state_at(setup, node: int, mode: int = NORMAL) -> State:
-    return State(mode, node, False, setup.all_seen, (0,) * setup.config.modules, 0, 0, 0)
+    return State(mode, node, False, setup.all_seen, (0,) * setup.config.modules, 0, 0, 0, 0)
 
 
-def alphas(speed: int) -> tuple[int, int]:
-    return (braking_distance_dm(speed, CFG.service_decel_mms2, CFG.reaction_ms),
-            braking_distance_dm(speed, CFG.emergency_decel_mms2, CFG.reaction_ms))
+def alphas(speed: int, closing: int = 0) -> tuple[int, int]:
+    """The table's zone limits: EBI and the service curve under normal conditions (fresh reports)."""
+    a2 = curves(CFG, speed, 0, 0, closing, 0).ebi_dm
+    return max(a2, curves(CFG, speed, 0, 0, closing, 0, service=True).ebi_dm), a2
 
 
-def zone_distances(speed: int) -> dict:
+def ladder(d: int, speed: int, closing: int = 0, track: int = 0, brake: int = 0) -> int:
+    """The supervision's demand for a fresh obstacle at d, nothing held."""
+    c = curves(CFG, speed, track, brake, closing, 0)
+    return supervision_demand(d != NO_DISTANCE, d, c.ebi_dm, c.sbi_dm, c.warning_dm, False)[0]
+
+
+def zone_distances(speed: int, closing: int = 0) -> dict:
     """Distances (dm) that lie in each zone at this speed, including every zone boundary."""
-    a1, a2 = alphas(speed)
+    a1, a2 = alphas(speed, closing)
     w = CFG.warning_margin_dm
     cand = {3: [0, a2 // 2, a2], 2: [a2 + 1, (a2 + a1) // 2, a1], 1: [a1 + 1, a1 + w],
             0: [a1 + w + 1, a1 + w + 5000, 60000]}
-    return {z: sorted({d for d in ds if 0 <= d <= 60000 and zone_of(d, speed) == z}) for z, ds in cand.items()}
+    return {z: sorted({d for d in ds if 0 <= d <= 60000 and zone_of(d, speed, closing) == z}) for z, ds in cand.items()}
 
 
-def zone_of(d: int, speed: int) -> int:
-    a1, a2 = alphas(speed)
+def zone_of(d: int, speed: int, closing: int = 0) -> int:
+    a1, a2 = alphas(speed, closing)
     if d <= a2:
         return 3
     if d <= a1:
@@ -166,8 +174,8 @@ def test_m1_every_node_and_observation_through_the_core(mode):
             assert out.demand >= table.action[nxt], ctx
             if mode == NORMAL:
                 assert out.mode == NORMAL, ctx
-                # nothing else asks for braking except the envelope in the critical zone
-                expected = EMERGENCY if obs == 3 else table.action[nxt]
+                # nothing else asks for braking but the curves (emergency in the critical zone)
+                expected = max(table.action[nxt], ladder(d, speed))
                 assert out.demand == expected, ctx
                 assert bool(out.reasons & R_TABLE) == (table.action[nxt] > 0), ctx
                 assert bool(out.reasons & R_ENVELOPE) == (obs == 3), ctx
@@ -204,9 +212,9 @@ M2_CLOSING = {0: -100, 1: 500, 2: 3000}   # away, slow (< fast_closing_cms = 200
 
 def m2_pictures(speed: int = 4000):
     """One picture per observation: every combination of component values."""
-    zones = zone_distances(speed)
     pics = []
     for z, s, kind, track, brake in itertools.product(range(4), range(3), range(3), range(2), range(2)):
+        zones = zone_distances(speed, M2_CLOSING[s])
         d = zones[z][len(zones[z]) // 2]
         reports = all_present(d, M2_CLOSING[s], kind)
         name = f"{DIST[z]}-{SPEED[s]}-{KIND[kind]}-{TRACK[track]}-{BRAKE[brake]}"
@@ -270,7 +278,9 @@ def test_m2_every_node_and_observation_through_the_core():
             assert out.mode == NORMAL
             assert out.node == nxt, (node, name, out)
             assert out.demand >= table.action[nxt]
-            expected = EMERGENCY if z == 3 else table.action[nxt]
+            d, closing = reports[0].distance_dm, reports[0].closing_cms
+            expected = max(table.action[nxt], ladder(d, train.speed_cms, closing, train.track, train.brake))
+            assert z < 3 or expected == EMERGENCY
             assert out.demand == expected, (node, name, out)
             hits += 1
     assert hits == table.nodes * 144

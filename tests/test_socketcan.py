@@ -22,7 +22,7 @@ from can_bus.codec import BRAKE_DEMAND_ID, MONITOR_STATUS_ID, database
 from monitor.core.types import R_ENVELOPE, R_STALE, R_SYSTEM_ERROR, R_TABLE
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "tests" / "data" / "vcan-stop.toml"     # obstacle stop, then channel 2 silent 21-23 s
+SCENARIO = ROOT / "tests" / "data" / "vcan-stop.toml"     # obstacle stop (about 31 s), then channel 2 silent 34-36 s
 
 
 @pytest.fixture(scope="module")

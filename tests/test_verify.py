@@ -91,7 +91,7 @@ def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "verification.broken", broken)
     sections, report = verify_run.run(tmp_path, True, lambda m: None, ("broken",))
     assert [c.passed for c in sections[0].checks] == [False]
-    assert sections[-1].title == "Scale"
+    assert [s.title for s in sections] == ["broken"]      # no scale checks without the parts they are about
     assert "planted" in report.read_text()
     data = json.loads((tmp_path / "report.json").read_text())
     assert data["passed"] is False
@@ -105,6 +105,7 @@ def test_verify_quick_passes_with_report_and_json(tmp_path):
     failed = [c for c in data["checks"] if not c["passed"]]
     assert res.returncode == 0 and data["passed"], failed
     assert {p["title"] for p in data["parts"]} and len(data["checks"]) >= 30
+    assert any(c["name"].startswith("scale:") for c in data["checks"])
     assert all({"name", "passed", "figure"} <= set(c) for c in data["checks"])
     text = (tmp_path / "report.md").read_text()
     for png in (p for part in data["parts"] for p in part["figures"]):

@@ -97,12 +97,12 @@ _OBSTACLE = _E2E + (("Status", 12, 2, False, 0, 2), ("ObstacleType", 14, 2, Fals
                     ("ClosingSpeed", 32, 16, True, -15000, 15000),  # [-150|150] m/s at 0.01 m/s
                     ("Module", 48, 2, False, 0, 2), ("Channel", 50, 1, False, 0, 1))
 LAYOUT = {
-    BRAKE_DEMAND: _E2E + (("Level", 12, 2, False, 0, 2), ("Reason", 16, 16, False, 0, 1023),
+    BRAKE_DEMAND: _E2E + (("Level", 12, 2, False, 0, 2), ("Warning", 14, 1, False, 0, 1), ("Reason", 16, 16, False, 0, 8191),
                           ("Cycle", 32, 32, False, 0, 2**32 - 1)),
     **{fid: _OBSTACLE for fid in OBSTACLES},
     TRAIN_STATE: _E2E + (("TrackCondition", 12, 1, False, 0, 1), ("BrakeStatus", 13, 1, False, 0, 1),
                          ("Speed", 16, 16, False, 0, 12000)),    # [0|120] m/s at 0.01 m/s
-    MONITOR_STATUS: _E2E + (("Mode", 12, 2, False, 0, 3), ("Node", 16, 10, False, 0, 1023),
+    MONITOR_STATUS: _E2E + (("Mode", 12, 2, False, 0, 3), ("Warning", 14, 1, False, 0, 1), ("Node", 16, 10, False, 0, 1023),
                             ("ErrorFlags", 26, 6, False, 0, 63), ("VotedDistance", 32, 16, False, 0, 65535),
                             ("TableHash", 48, 12, False, 0, 4095), ("DeadlineMisses", 60, 4, False, 0, 15)),
 }
@@ -503,7 +503,7 @@ class Harness:
             return f"error_cycles {s.error_cycles!r} after {before.error_cycles!r}"
         if not (type(out.demand) is int and 0 <= out.demand <= 2):
             return f"demand {out.demand!r}"
-        if not (type(out.reasons) is int and 0 <= out.reasons < 1024):
+        if not (type(out.reasons) is int and 0 <= out.reasons < 8192):
             return f"reasons {out.reasons!r}"
         if not (type(out.distance_dm) is int and (0 <= out.distance_dm <= 60000 or out.distance_dm == NO_DISTANCE)):
             return f"distance {out.distance_dm!r}"
@@ -513,6 +513,10 @@ class Harness:
             return f"module flags {out.module_flags!r}"
         if type(out.system_error) is not bool:
             return f"system_error {out.system_error!r}"
+        if type(out.warning) is not bool:
+            return f"warning {out.warning!r}"
+        if not (type(s.calm) is int and 0 <= s.calm < self.setup.config.release_confirm_cycles):
+            return f"calm {s.calm!r}"
         if (out.node, out.mode, out.cycle, out.error_cycles) != (s.node, s.mode, s.cycle, s.error_cycles):
             return "outputs disagree with the state (node, mode, cycle, error_cycles)"
         if s.mode == INIT and not (out.demand == EMERGENCY and out.reasons & R_INIT):
@@ -669,7 +673,7 @@ class Traffic:
             b = t.u8()
             return {"Speed": self.pick(0, 12000), "TrackCondition": b & 1, "BrakeStatus": (b >> 1) & 1}
         if frame_id == BRAKE_DEMAND:
-            return {"Level": t.u8() % 3, "Reason": self.pick(0, 1023), "Cycle": t.u32()}
+            return {"Level": t.u8() % 3, "Warning": t.u8() % 2, "Reason": self.pick(0, 8191), "Cycle": t.u32()}
         return {"Mode": t.u8() & 3, "Node": t.u16() & 1023, "ErrorFlags": t.u8() & 63, "VotedDistance": t.u16(),
                 "TableHash": t.u16() & 4095, "DeadlineMisses": t.u8() & 15}
 

@@ -13,10 +13,14 @@ from pathlib import Path
 
 from .report import Progress, Section, timed, write_report
 
-PARTS = ("closed_loop", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof")
+PARTS = ("closed_loop", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof")
+CONFIGURED = ("campaign",)      # parts whose section takes the monitor's Config (`--braking FILE.toml`)
 
 
-def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, ...] = PARTS) -> tuple[list[Section], Path]:
+def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, ...] = PARTS,
+        config=None) -> tuple[list[Section], Path]:
+    """Every part into one report; `config` (a monitor Config, None: the default) goes to the
+    parts in CONFIGURED."""
     import importlib
 
     out = Path(out_dir)
@@ -29,7 +33,8 @@ def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, 
         module = importlib.import_module(f"verification.{name}")
         progress(f"{name}: start")
         try:
-            sections.append(timed(module.section, out, quick, progress))
+            options = {"config": config} if config is not None and name in CONFIGURED else {}
+            sections.append(timed(module.section, out, quick, progress, **options))
         except Exception as exc:  # noqa: BLE001 - a part that crashes is a failed check, and the report says so
             from .report import Check
 
@@ -37,7 +42,8 @@ def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, 
                                     [Check(f"{name}: runs to completion", False, f"{type(exc).__name__}: {exc}")]))
         progress(f"{name}: done in {sections[-1].seconds:.1f} s")
     total = time.perf_counter() - t0
-    sections.append(scale_section(sections, names, quick, total))
+    if set(EVIDENCE_I) <= set(names):      # the scale targets are about these parts together
+        sections.append(scale_section(sections, names, quick, total))
     from monitor import __version__
 
     header = (f"railguard {__version__}, Python {platform.python_version()}, {platform.machine()}; "

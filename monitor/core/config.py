@@ -1,12 +1,20 @@
 """Monitor configuration, checked once at start-up: a bad value is refused with a message
-that names it and says why, before the first cycle runs."""
+that names it and says why, before the first cycle runs.
+
+The train's braking declaration (docs/supervision.md) lives here in integer units: the
+guaranteed decelerations (already reduced by the operator's confidence factor), build-up
+and traction cut-off times, speed error, adhesion factors, gradient and standstill margin.
+`monitor.declaration` reads it from a TOML file in SI units.
+"""
 from __future__ import annotations
 
 from typing import NamedTuple
 
-from .types import EMERGENCY, SERVICE
+from .types import EMERGENCY, MAX_SPEED_CMS, SERVICE
 
 TOPOLOGIES = {"3oo3": 3, "2oo2": 1}   # name -> number of 2oo2 modules
+RELEASE_AT_STANDSTILL, RELEASE_REVOCABLE = 0, 1
+MIN_GUARANTEED_DECEL_MMS2 = 100       # below this (worst case) the train cannot be said to stop
 
 
 class ConfigurationError(ValueError):
@@ -16,13 +24,31 @@ class ConfigurationError(ValueError):
 class Config(NamedTuple):
     period_ms: int = 100               # cycle period
     timeout_cycles: int = 3            # a report older than this many cycles is stale
-    persistence_cycles: int = 3        # a 2oo2 disagreement this long is a perceptor error
-    service_decel_mms2: int = 1000     # nominal braking, for alpha1(v)
-    emergency_decel_mms2: int = 3000   # emergency braking, for alpha2(v) and the envelope
-    reaction_ms: int = 500             # reaction and brake build-up time in the braking distance
-    warning_margin_dm: int = 2000      # warning zone length beyond alpha1
+    persistence_cycles: int = 10       # a 2oo2 disagreement this long is a perceptor error
+    # --- the train's braking declaration (guaranteed values; docs/supervision.md)
+    emergency_decel_mms2: int = 2400   # guaranteed emergency deceleration from 0 (speed band 1)
+    emergency_band2_cms: int = 3000    # band 2 starts at this speed (0: no band 2)
+    emergency_band2_mms2: int = 2200   # guaranteed emergency deceleration in band 2
+    emergency_band3_cms: int = 0       # band 3 starts at this speed (0: no band 3)
+    emergency_band3_mms2: int = 0      # guaranteed emergency deceleration in band 3
+    service_decel_mms2: int = 800      # guaranteed service deceleration
+    emergency_buildup_ms: int = 1000   # equivalent emergency brake build-up (dead time + half ramp)
+    service_buildup_ms: int = 2000     # equivalent service brake build-up
+    traction_cutoff_ms: int = 800      # traction may still accelerate the train this long
+    max_accel_mms2: int = 500          # the train's largest acceleration under traction
+    speed_error_permille: int = 20     # speed measurement error, fraction of the speed
+    slippery_permille: int = 700       # deceleration factor while the train reports a slippery track
+    degraded_permille: int = 800       # deceleration factor while the train reports degraded brakes
+    max_gradient_permille: int = 20    # steepest downhill gradient of the line
+    standstill_margin_dm: int = 50     # stop this far before the obstacle
+    # --- supervision and response
+    warning_ms: int = 2000             # the warning curve leads SBI by this time
+    emergency_release: int = RELEASE_REVOCABLE  # 1: revocable when the cause is gone; 0: at standstill
+    release_confirm_cycles: int = 5    # cycles without an emergency cause before a revocable release
+    # --- Model 2 observation and voting
+    warning_margin_dm: int = 2000      # table zones: warning zone length beyond alpha1
     fast_closing_cms: int = 2000       # Model 2: closing speed from which an obstacle is "fast"
-    safe_reaction: int = EMERGENCY     # demand on a system error
+    safe_reaction: int = EMERGENCY     # demand on a system error with a degraded channel
     topology: str = "3oo3"
     recovery_cycles: int = 10          # error-free cycles before DEGRADED/SAFE_STOP clear
     max_overruns: int = 3              # consecutive deadline overruns leading to SAFE_STOP
@@ -35,6 +61,12 @@ class Config(NamedTuple):
     @property
     def channels(self) -> int:
         return 2 * self.modules
+
+
+DECLARATION_FIELDS = ("emergency_decel_mms2", "emergency_band2_cms", "emergency_band2_mms2", "emergency_band3_cms",
+                      "emergency_band3_mms2", "service_decel_mms2", "emergency_buildup_ms", "service_buildup_ms",
+                      "traction_cutoff_ms", "max_accel_mms2", "speed_error_permille", "slippery_permille",
+                      "degraded_permille", "max_gradient_permille", "standstill_margin_dm")
 
 
 def check(cfg: Config) -> None:
@@ -50,21 +82,66 @@ def check(cfg: Config) -> None:
     need(cfg.topology in TOPOLOGIES, "topology", f"unknown topology; known: {', '.join(TOPOLOGIES)}")
     need(1 <= cfg.period_ms <= 10000, "period_ms", "must be 1..10000 ms")
     need(cfg.timeout_cycles >= 1, "timeout_cycles", "must be at least 1 cycle (0 would make every report stale)")
-    need(cfg.persistence_cycles >= 1, "persistence_cycles", "must be at least 1 cycle")
-    need(cfg.persistence_cycles <= cfg.timeout_cycles, "persistence_cycles",
-         f"must not exceed timeout_cycles ({cfg.timeout_cycles}): a disagreement would outlive the reports it is about")
-    need(cfg.service_decel_mms2 > 0, "service_decel_mms2", "a deceleration must be positive (mm/s^2, magnitude)")
-    need(cfg.emergency_decel_mms2 > 0, "emergency_decel_mms2", "a deceleration must be positive (mm/s^2, magnitude)")
-    need(cfg.emergency_decel_mms2 >= cfg.service_decel_mms2, "emergency_decel_mms2",
-         f"must be at least service_decel_mms2 ({cfg.service_decel_mms2})")
-    need(cfg.emergency_decel_mms2 <= 20000, "emergency_decel_mms2", "more than 20 m/s^2 is not a train")
-    need(0 <= cfg.reaction_ms <= 60000, "reaction_ms", "must be 0..60000 ms")
+    need(cfg.timeout_cycles * cfg.period_ms <= 60000, "timeout_cycles",
+         f"a report may be at most 60 s old (timeout_cycles x period_ms = {cfg.timeout_cycles * cfg.period_ms} ms)")
+    need(1 <= cfg.persistence_cycles <= 1000, "persistence_cycles", "must be 1..1000 cycles")
+    for name in ("emergency_decel_mms2", "service_decel_mms2"):
+        need(1 <= getattr(cfg, name) <= 20000, name, "a deceleration must be 1..20000 mm/s^2 (magnitude)")
+    need(0 <= cfg.emergency_band2_cms <= MAX_SPEED_CMS, "emergency_band2_cms", f"must be 0 (no band) or a speed up to {MAX_SPEED_CMS} cm/s")
+    need(0 <= cfg.emergency_band3_cms <= MAX_SPEED_CMS, "emergency_band3_cms", f"must be 0 (no band) or a speed up to {MAX_SPEED_CMS} cm/s")
+    need(cfg.emergency_band3_cms == 0 or cfg.emergency_band3_cms > cfg.emergency_band2_cms > 0, "emergency_band3_cms",
+         f"band 3 needs band 2 and must start above it ({cfg.emergency_band2_cms} cm/s)")
+    for band in (2, 3):
+        if getattr(cfg, f"emergency_band{band}_cms"):
+            name = f"emergency_band{band}_mms2"
+            need(1 <= getattr(cfg, name) <= 20000, name, "a deceleration must be 1..20000 mm/s^2 (magnitude)")
+    need(cfg.service_decel_mms2 <= min(a for _, a in emergency_bands(cfg)), "service_decel_mms2",
+         "must not exceed the guaranteed emergency deceleration of any speed band")
+    for name in ("emergency_buildup_ms", "service_buildup_ms", "traction_cutoff_ms"):
+        need(0 <= getattr(cfg, name) <= 30000, name, "must be 0..30000 ms")
+    need(0 <= cfg.max_accel_mms2 <= 5000, "max_accel_mms2", "must be 0..5000 mm/s^2")
+    need(0 <= cfg.speed_error_permille <= 500, "speed_error_permille", "must be 0..500 (per mille of the speed)")
+    for name in ("slippery_permille", "degraded_permille"):
+        need(1 <= getattr(cfg, name) <= 1000, name, "a deceleration factor must be 1..1000 per mille (adverse conditions never brake better)")
+    need(0 <= cfg.max_gradient_permille <= 60, "max_gradient_permille", "must be 0..60 per mille (downhill)")
+    need(0 <= cfg.standstill_margin_dm <= 10000, "standstill_margin_dm", "must be 0..10000 dm")
+    worst = min(a for _, a in emergency_bands(cfg)) * cfg.slippery_permille * cfg.degraded_permille // 1000000
+    need(worst - gradient_accel_mms2(cfg.max_gradient_permille) >= MIN_GUARANTEED_DECEL_MMS2, "max_gradient_permille",
+         f"on this downhill with slippery track and degraded brakes the guaranteed deceleration is "
+         f"{worst - gradient_accel_mms2(cfg.max_gradient_permille)} mm/s^2, below {MIN_GUARANTEED_DECEL_MMS2}: the train cannot be said to stop")
+    worst_service = cfg.service_decel_mms2 * cfg.slippery_permille * cfg.degraded_permille // 1000000
+    need(worst_service - gradient_accel_mms2(cfg.max_gradient_permille) >= MIN_GUARANTEED_DECEL_MMS2, "service_decel_mms2",
+         "too weak to stop the train on the steepest downhill with slippery track and degraded brakes")
+    need(0 <= cfg.warning_ms <= 60000, "warning_ms", "must be 0..60000 ms")
+    need(cfg.emergency_release in (RELEASE_AT_STANDSTILL, RELEASE_REVOCABLE), "emergency_release",
+         "must be 0 (held to standstill) or 1 (revocable when its cause is gone)")
+    need(1 <= cfg.release_confirm_cycles <= 1000, "release_confirm_cycles", "must be 1..1000 cycles")
     need(0 <= cfg.warning_margin_dm <= 60000, "warning_margin_dm", "must be 0..60000 dm")
     need(1 <= cfg.fast_closing_cms <= 15000, "fast_closing_cms", "must be 1..15000 cm/s")
     need(cfg.safe_reaction in (SERVICE, EMERGENCY), "safe_reaction", "must be 1 (service) or 2 (emergency)")
-    need(cfg.recovery_cycles >= 1, "recovery_cycles", "must be at least 1 cycle")
-    need(cfg.max_overruns >= 1, "max_overruns", "must be at least 1")
+    need(1 <= cfg.recovery_cycles <= 100000, "recovery_cycles", "must be 1..100000 cycles")
+    need(1 <= cfg.max_overruns <= 1000, "max_overruns", "must be 1..1000")
     need(0 <= cfg.distance_tolerance_dm <= 60000, "distance_tolerance_dm", "must be 0..60000 dm")
+
+
+def emergency_bands(cfg: Config) -> tuple:
+    """((from_cms, decel_mms2), ...) of the emergency brake, lowest speed first."""
+    bands = [(0, cfg.emergency_decel_mms2)]
+    if cfg.emergency_band2_cms:
+        bands.append((cfg.emergency_band2_cms, cfg.emergency_band2_mms2))
+        if cfg.emergency_band3_cms:
+            bands.append((cfg.emergency_band3_cms, cfg.emergency_band3_mms2))
+    return tuple(bands)
+
+
+def gradient_accel_mms2(gradient_permille: int) -> int:
+    """g * gradient in mm/s^2, rounded up (g = 9.81 m/s^2; downhill adds this much).
+
+    pre: 0 <= gradient_permille <= 60
+    post: __return__ * 1000 >= 9810 * gradient_permille
+    post: (__return__ - 1) * 1000 < 9810 * gradient_permille or __return__ == 0
+    """
+    return -(-9810 * gradient_permille // 1000)
 
 
 def from_mapping(values: dict) -> Config:

@@ -1,8 +1,10 @@
 """One monitor cycle: step(setup, state, inputs, tick) -> (state, outputs).
 
-freshness -> 2oo2 per module -> 3oo3 across modules -> envelope -> observation -> table ->
-brake latch. Pure: the same setup, state, inputs and tick always give the same result.
-The mode machine is documented in docs/core.md.
+freshness -> 2oo2 per module -> 3oo3 across modules -> braking curves (EBI, SBI, warning)
+-> observation -> table -> demand (only ever upwards) -> emergency latch and release.
+Pure: the same setup, state, inputs and tick always give the same result. The mode
+machine is documented in docs/core.md, the curves and the responses in
+docs/supervision.md.
 """
 from __future__ import annotations
 
@@ -11,14 +13,17 @@ from typing import NamedTuple
 
 from . import config as config_mod
 from .config import Config, ConfigurationError
-from .envelope import braking_distance_dm, combine, envelope_demand, latch, zone
+from .braking import curves, ebi_dm
+from .config import RELEASE_REVOCABLE
+from .envelope import combine, latch, supervision_demand, zone
 from .freshness import channel_status
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .table import Table, TableError, decode
 from .types import (
     DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NORMAL,
     PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
-    R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, SAFE_STOP, STATIC, Inputs, Outputs, State,
+    R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC, Inputs,
+    Outputs, State,
 )
 from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
 
@@ -60,7 +65,7 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
 
 
 def initial_state(setup: Setup) -> State:
-    return State(INIT, setup.table.start, False, 0, (0,) * setup.config.modules, 0, 0, 0)
+    return State(INIT, setup.table.start, False, 0, (0,) * setup.config.modules, 0, 0, 0, 0)
 
 
 def _train(train) -> tuple[int, int, int, bool]:
@@ -87,8 +92,8 @@ def step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, 
     except Exception:  # noqa: BLE001 - the monitor must never stop; fail to the safe side
         cycle, errors = _inc(state.cycle), _inc(state.error_cycles)
         out = Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, state.node,
-                      SAFE_STOP, 0, True, 0, cycle, errors)
-        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=cycle, error_cycles=errors), out
+                      SAFE_STOP, 0, True, 0, cycle, errors, True)
+        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=cycle, error_cycles=errors, calm=0), out
 
 
 def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
@@ -104,6 +109,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     stale = False
     closing = None
     obstacle = STATIC
+    age = 0
     for i, s in enumerate(statuses):
         if s == DEGRADED:
             stale = True
@@ -113,6 +119,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
                 r = reports[i]
                 closing = r.closing_cms if closing is None or r.closing_cms > closing else closing
                 obstacle = r.obstacle if r.obstacle > obstacle else obstacle
+                age = tick - r.tick if tick - r.tick > age else age
 
     # 2. 2oo2 per module, with disagreement persistence
     results = []
@@ -141,25 +148,31 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     else:
         sys_status, distance, sys_error = vote_single(*results[0])
 
-    # 4. envelope at the current speed
+    # 4. braking curves at the measured speed (docs/supervision.md), under the reported
+    #    conditions for the supervision and under normal ones for the table's zones
     speed, track, brake, train_ok = _train(inputs.train)
-    alpha1 = braking_distance_dm(speed, cfg.service_decel_mms2, cfg.reaction_ms)
-    alpha2 = braking_distance_dm(speed, cfg.emergency_decel_mms2, cfg.reaction_ms)
-    env = envelope_demand(distance != NO_DISTANCE, distance, alpha2)
+    present = distance != NO_DISTANCE
+    toward = speed if closing is None else closing
+    curve = curves(cfg, speed, track, brake, toward, age)
+    env, warn = supervision_demand(present, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
 
     # 5. observation
-    if distance != NO_DISTANCE:
-        z = zone(distance, alpha1, alpha2, cfg.warning_margin_dm)
+    if present:
+        alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age) if (track or brake) else curve.ebi_dm
+        alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
+        z = zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
     else:
         z = 3 if sys_status == DEGRADED else 0
     if setup.model == "m1":
         obs = z
     else:
-        spd = speed_class(speed if closing is None else closing, cfg.fast_closing_cms)
+        spd = speed_class(toward, cfg.fast_closing_cms)
         obs = m2_observation(z, spd, obstacle, track, brake)
 
-    # modes
+    # modes; a dispute is a system error with every channel fresh: channels disagree
+    # about an obstacle, answered by the curves and a warning rather than by safe_reaction
     error = sys_error or not train_ok
+    dispute = sys_error and train_ok and not stale
     overrun_limit = inputs.overruns >= cfg.max_overruns
     healthy = 0 if (error or stale or perceptor or overrun_limit) else _inc(state.healthy)
     mode = state.mode
@@ -176,41 +189,55 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     elif mode == DEGRADED_MODE and healthy >= cfg.recovery_cycles:
         mode = NORMAL
 
-    # 6. table
+    # 6. table (held during any system error: it reads only pictures the voter confirms;
+    #    the curves and the error rules answer meanwhile)
     if mode == INIT:
         node = setup.table.start
         table_demand = MAINTAIN
+    elif error and mode != SAFE_STOP:
+        node = state.node
+        table_demand = setup.action[node]
     else:
         node = setup.next[state.node][obs]
         table_demand = setup.action[node]
 
-    # 7. demands, only ever upwards, then the latch
+    # 7. demands, only ever upwards, then the latch; INIT brakes without latching, so a
+    #    monitor started on a moving train releases once its picture is valid
     reasons = 0
     error_demand = MAINTAIN
     if table_demand:
         reasons |= R_TABLE
-    if env:
+    if env == EMERGENCY:
         reasons |= R_ENVELOPE
+    elif env == SERVICE:
+        reasons |= R_SBI
     if stale:
         reasons |= R_STALE
     if error:
-        error_demand = cfg.safe_reaction
         reasons |= R_SYSTEM_ERROR | (0 if train_ok else R_TRAIN_INPUT)
-    if mode == INIT:
-        error_demand = EMERGENCY
-        reasons |= R_INIT
+        if dispute:
+            reasons |= R_DISPUTE
+            warn = True
+        elif mode != INIT:           # in INIT the emergency below covers it, unlatched
+            error_demand = cfg.safe_reaction
     if mode == SAFE_STOP:
         error_demand = EMERGENCY
         reasons |= R_SAFE_STOP | (R_PERCEPTOR if perceptor else 0) | (R_DEADLINE if overrun_limit else 0)
     demand = combine(table_demand, env, error_demand)
-    latched, final = latch(state.latched, demand, speed)
-    if latched and state.latched:
+    latched, calm, final = latch(state.latched, state.calm, demand, speed,
+                                 cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
+    if latched and state.latched and demand != EMERGENCY:
         reasons |= R_LATCH
+    if mode == INIT:
+        final = EMERGENCY
+        reasons |= R_INIT
+    if warn:
+        reasons |= R_WARNING
 
     error_cycles = _inc(state.error_cycles) if error or stale else state.error_cycles
     cycle = _inc(state.cycle)
-    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, cycle, error_cycles)
-    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles)
+    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, cycle, error_cycles, calm)
+    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn)
     return new_state, out
 
 

@@ -1,22 +1,9 @@
-"""Hard rules that the policy table cannot override: braking distances, zones, the
-emergency envelope, combination of demands (only ever upwards) and the emergency latch."""
+"""Hard rules that the policy table cannot override: the table's zones, the supervision
+ladder on the braking curves (warning, service at SBI, emergency at EBI), combination of
+demands (only ever upwards) and the emergency latch with its release."""
 from __future__ import annotations
 
-from .types import EMERGENCY, MAINTAIN
-
-
-def braking_distance_dm(speed_cms: int, decel_mms2: int, reaction_ms: int) -> int:
-    """d(v) = v^2 / (2a) + v t_r in decimetres, rounded up (the safe side).
-
-    With v in cm/s and a in mm/s^2, v^2/(2a) is already in dm; v t_r is v * t_r / 10^4 dm.
-    pre: 0 <= speed_cms <= 12000 and 1 <= decel_mms2 <= 20000 and 0 <= reaction_ms <= 60000
-    post: __return__ >= 0
-    post: __return__ * 2 * decel_mms2 * 10000 >= speed_cms * speed_cms * 10000 + 2 * decel_mms2 * speed_cms * reaction_ms
-    post: (__return__ - 1) * 2 * decel_mms2 * 10000 < speed_cms * speed_cms * 10000 + 2 * decel_mms2 * speed_cms * reaction_ms or __return__ == 0
-    """
-    num = speed_cms * speed_cms * 10000 + 2 * decel_mms2 * speed_cms * reaction_ms
-    den = 2 * decel_mms2 * 10000
-    return -(-num // den)
+from .types import EMERGENCY, MAINTAIN, SERVICE
 
 
 def zone(distance_dm: int, alpha1_dm: int, alpha2_dm: int, warning_dm: int) -> int:
@@ -37,12 +24,28 @@ def zone(distance_dm: int, alpha1_dm: int, alpha2_dm: int, warning_dm: int) -> i
     return 0
 
 
-def envelope_demand(obstacle_present: bool, distance_dm: int, alpha2_dm: int) -> int:
-    """Emergency braking when a voted obstacle is inside the emergency braking distance.
+def supervision_demand(present: bool, distance_dm: int, ebi_dm: int, sbi_dm: int, warning_dm: int,
+                       held: bool) -> tuple[int, bool]:
+    """(demand, warning) of the braking curves for the voted obstacle: emergency inside EBI
+    (while an emergency is held, inside SBI: the obstacle must be back beyond SBI before
+    the cause is gone), service inside SBI, a warning inside the warning curve.
 
-    post: __return__ == (2 if obstacle_present and distance_dm <= alpha2_dm else 0)
+    pre: 0 <= ebi_dm <= sbi_dm <= warning_dm
+    post: not present or distance_dm > ebi_dm or __return__[0] == 2
+    post: not present or distance_dm > sbi_dm or __return__[0] >= 1
+    post: not (held and present and distance_dm <= sbi_dm) or __return__[0] == 2
+    post: present or __return__ == (0, False)
+    post: __return__[1] == (present and distance_dm <= warning_dm)
+    post: not (present and distance_dm > sbi_dm) or __return__[0] == 0
+    post: held or not present or distance_dm <= ebi_dm or __return__[0] <= 1
     """
-    return EMERGENCY if obstacle_present and distance_dm <= alpha2_dm else MAINTAIN
+    if not present:
+        return MAINTAIN, False
+    if distance_dm <= ebi_dm or (held and distance_dm <= sbi_dm):
+        return EMERGENCY, True
+    if distance_dm <= sbi_dm:
+        return SERVICE, True
+    return MAINTAIN, distance_dm <= warning_dm
 
 
 def combine(table_demand: int, envelope: int, error_demand: int) -> int:
@@ -55,14 +58,22 @@ def combine(table_demand: int, envelope: int, error_demand: int) -> int:
     return max(table_demand, envelope, error_demand)
 
 
-def latch(latched: bool, demand: int, speed_cms: int) -> tuple[bool, int]:
-    """(latched, demand): emergency, once demanded, is held until standstill (as ETCS does).
+def latch(latched: bool, calm: int, demand: int, speed_cms: int, revocable: bool, confirm: int) -> tuple[bool, int, int]:
+    """(latched, calm, demand): an emergency, once demanded, is held until standstill or, if
+    `revocable`, until its cause has been gone for `confirm` cycles in a row (`calm`
+    counts them), as ETCS does by national value.
 
-    pre: 0 <= demand <= 2 and speed_cms >= 0
-    post: not (latched and speed_cms > 0) or __return__ == (True, 2)
-    post: not (demand == 2 and speed_cms > 0) or __return__[0]
-    post: __return__[1] >= demand
-    post: not (speed_cms == 0) or __return__ == (False, demand)
+    pre: 0 <= demand <= 2 and speed_cms >= 0 and confirm >= 1 and calm >= 0
+    post: __return__[2] >= demand
+    post: not (demand == 2 and speed_cms > 0) or (__return__[0] and __return__[1] == 0)
+    post: not (speed_cms == 0) or __return__ == (False, 0, demand)
+    post: not (latched and speed_cms > 0 and not revocable) or __return__[0]
+    post: not (latched and speed_cms > 0 and calm + 1 < confirm) or __return__[0]
+    post: __return__[2] == (2 if __return__[0] else demand)
+    post: __return__[1] < confirm and (revocable or __return__[1] == 0)
     """
     held = (latched or demand == EMERGENCY) and speed_cms > 0
-    return held, (EMERGENCY if held else demand)
+    calm = calm + 1 if held and revocable and demand != EMERGENCY else 0
+    if held and revocable and calm >= confirm:
+        held, calm = False, 0
+    return held, calm, (EMERGENCY if held else demand)

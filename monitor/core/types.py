@@ -25,7 +25,7 @@ MODE_NAMES = ("INIT", "NORMAL", "DEGRADED", "SAFE_STOP")
 
 # Reason bits: which rules asked for the demand.
 R_TABLE = 1 << 0         # the policy table asked for braking
-R_ENVELOPE = 1 << 1      # voted obstacle inside the emergency braking distance
+R_ENVELOPE = 1 << 1      # voted obstacle inside the emergency intervention curve (EBI)
 R_SYSTEM_ERROR = 1 << 2  # 2oo2 flag, 3oo3 disagreement or degraded module
 R_LATCH = 1 << 3         # emergency latched until standstill
 R_INIT = 1 << 4          # not every channel fresh yet
@@ -34,8 +34,11 @@ R_STALE = 1 << 6         # at least one channel stale, out of range or never hea
 R_PERCEPTOR = 1 << 7     # a 2oo2 disagreement persisted
 R_DEADLINE = 1 << 8      # deadline overruns reached the limit
 R_TRAIN_INPUT = 1 << 9   # train state out of range
+R_SBI = 1 << 10          # voted obstacle inside the service intervention curve (SBI): service
+R_WARNING = 1 << 11      # voted obstacle inside the warning curve, or a disputed obstacle
+R_DISPUTE = 1 << 12      # channels disagree about an obstacle while all are fresh: graded answer
 REASON_NAMES = ("table", "envelope", "system_error", "latch", "init", "safe_stop",
-                "stale", "perceptor", "deadline", "train_input")
+                "stale", "perceptor", "deadline", "train_input", "sbi", "warning", "dispute")
 
 # Documented input ranges; anything outside counts as DEGRADED (or as a train-input error).
 MAX_DISTANCE_DM = 60000      # 6 km
@@ -79,6 +82,7 @@ class State(NamedTuple):
     healthy: int         # consecutive error-free cycles
     cycle: int
     error_cycles: int
+    calm: int = 0        # cycles in a row without an emergency cause while the emergency is held
 
 
 class Outputs(NamedTuple):
@@ -92,3 +96,4 @@ class Outputs(NamedTuple):
     observation: int
     cycle: int
     error_cycles: int
+    warning: bool = False  # the supervision warns (obstacle inside the warning curve, or disputed)

@@ -1,0 +1,1 @@
+"""Shipped braking declarations (TOML, SI units; docs/supervision.md)."""
