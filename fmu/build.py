@@ -1,7 +1,11 @@
 """Build the FMUs: generate the sources, compile the linux64 binary with gcc, zip.
 
-    build_monitor(table_bytes, fmi=2|3, out_dir) -> path of railguard-monitor-<model>-fmi<n>.fmu
-    build_train(out_dir)                           -> path of railguard-train-fmi2.fmu
+    build_monitor(table_bytes, fmi=2|3, out_dir, config=None) -> path of railguard-monitor-<model>-fmi<n>.fmu
+    build_train(out_dir)                                        -> path of railguard-train-fmi2.fmu
+
+`config` (a monitor.core.config.Config, e.g. a braking declaration applied to the
+defaults) gives the monitor's parameter start values, in the model description and in
+the C start values alike, so an importer that sets no parameter runs that configuration.
 
 Each FMU carries its C sources (with the FMI 3.0 buildDescription.xml) so that others can
 compile it for their platform; the binary is built with -std=c99 -Wall -Wextra -Werror
@@ -17,10 +21,11 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from monitor.core.config import Config, ConfigurationError, check
 from monitor.core.table import TableError, decode
 
 from . import generate
-from .variables import MONITOR, TRAIN
+from .variables import MONITOR, TRAIN, parameter_starts
 
 C_DIR = Path(__file__).resolve().parent / "c"
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2", "-fPIC"]
@@ -104,8 +109,22 @@ def _finish(folder: Path, identifier: str, fmi: int, c_files: list[str], descrip
     return _zip(folder, out)
 
 
-def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: str | None = None) -> Path:
-    """The monitor FMU for the table `data` (the bytes of a .rgt file)."""
+def monitor_starts(config: Config, period_ms: int) -> dict:
+    """The parameter start values for `config`, checked as the core checks them; its period
+    must be the table's (the FMU's fixed step)."""
+    try:
+        check(config)
+    except ConfigurationError as exc:
+        raise BuildError(f"configuration refused: {exc}") from None
+    if config.period_ms != period_ms:
+        raise BuildError(f"period_ms = {config.period_ms}: the table was solved for {period_ms} ms, the FMU's fixed step")
+    return parameter_starts(config)
+
+
+def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: str | None = None,
+                  config: Config | None = None) -> Path:
+    """The monitor FMU for the table `data` (the bytes of a .rgt file); its parameters start
+    at `config`'s values (default: Config(), the shipped declaration)."""
     if fmi not in (2, 3):
         raise BuildError(f"FMI version {fmi} is not supported (2 or 3)")
     try:
@@ -114,14 +133,17 @@ def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: st
         raise BuildError(f"table refused: {exc}") from None
     if table.model not in ("m1", "m2"):
         raise BuildError(f"table is for model {table.model!r}; the monitor FMU runs m1 or m2 tables")
-    tok = generate.token(MONITOR_ID, str(fmi), table.sha256, generate.variables_signature(MONITOR))
-    starts = {"table.model": table.model, "table.sha256": table.sha256, "table.nodes": table.nodes}
+    params = monitor_starts(config or Config(), round(float(table.header["params"]["time_step_s"]) * 1000))
+    tok = generate.token(MONITOR_ID, str(fmi), table.sha256, generate.variables_signature(MONITOR),
+                         repr(sorted(params.items())))
+    starts = {"table.model": table.model, "table.sha256": table.sha256, "table.nodes": table.nodes, **params}
     description = (f"railguard anti-collision monitor, policy table {table.model} ({table.nodes} nodes, "
-                   f"sha256 {table.sha256[:12]}), 2oo2/3oo3 voting, 100 ms cycle")
+                   f"sha256 {table.sha256[:12]}), 2oo2/3oo3 voting, braking curves, 100 ms cycle")
     out = Path(out_dir) / (name or f"railguard-monitor-{table.model}-fmi{fmi}.fmu")
     with tempfile.TemporaryDirectory(prefix="railguard-fmu-") as tmp:
         folder = Path(tmp)
         c_files = _stage(folder, "monitor", MONITOR, {"rg_table.h": generate.table_header(table, data),
+                                                      "rg_parameters.h": generate.parameters_header(params),
                                                       "build_info.h": generate.build_info_header(tok)}, core=True)
         if fmi == 2:
             xml = generate.model_description_fmi2(MONITOR_ID, tok, description, MONITOR, c_files + ["fmi2.c"],

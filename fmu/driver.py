@@ -142,8 +142,9 @@ class MonitorDriver:
         self.slave, self.fmi, self.unzip = open_slave(path, "monitor")
         initialize(self.slave, self.fmi, MONITOR, params or {})
         names = [v.name for v in MONITOR_OUTPUTS]
-        self.int_out = Port(self.slave, self.fmi, "Integer", [vr_of(MONITOR, n) for n in names if n != "system_error"], "get")
-        self.bool_out = Port(self.slave, self.fmi, "Boolean", [vr_of(MONITOR, "system_error")], "get")
+        bools = [v.name for v in MONITOR_OUTPUTS if v.type == "Boolean"]
+        self.int_out = Port(self.slave, self.fmi, "Integer", [vr_of(MONITOR, n) for n in names if n not in bools], "get")
+        self.bool_out = Port(self.slave, self.fmi, "Boolean", [vr_of(MONITOR, n) for n in bools], "get")
         ch = range(1, CHANNELS + 1)
         self.reals = Port(self.slave, self.fmi, "Real", [vr_of(MONITOR, f"ch{i}.{f}") for i in ch
                                                          for f in ("distance", "closing_speed")] + [vr_of(MONITOR, "train.speed")], "set")
@@ -151,7 +152,7 @@ class MonitorDriver:
                          + [vr_of(MONITOR, "train.track_condition"), vr_of(MONITOR, "train.brake_status")], "set")
         self.bools = Port(self.slave, self.fmi, "Boolean", [vr_of(MONITOR, f"ch{i}.valid") for i in ch], "set")
         self._step = do_step_function(self.slave, self.fmi)
-        self._sys_index = names.index("system_error")
+        self._bool_index = [names.index(n) for n in bools]    # ascending
         self.time = 0.0
         self.steps = 0
 
@@ -186,7 +187,8 @@ class MonitorDriver:
         self.int_out.call()
         self.bool_out.call()
         values = list(self.int_out.values)
-        values.insert(self._sys_index, bool(self.bool_out.values[0]))
+        for k, at in enumerate(self._bool_index):
+            values.insert(at, bool(self.bool_out.values[k]))
         return tuple(values)
 
     def close(self) -> None:

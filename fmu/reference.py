@@ -54,23 +54,28 @@ class StepInput(NamedTuple):
     brake: int = 0
 
 
-def config_from_parameters(params: dict) -> Config:
-    """A core Config from the FMU's parameter names (topology 3 -> "3oo3", 2 -> "2oo2")."""
+def config_from_parameters(params: dict, base: Config | None = None) -> Config:
+    """A core Config from the FMU's parameter names (topology 3 -> "3oo3", 2 -> "2oo2"); the
+    parameters not set keep `base`'s values (the FMU's start values; default Config())."""
     values = dict(params)
-    topo = values.pop("topology", 3)
-    values["topology"] = {3: "3oo3", 2: "2oo2"}.get(topo, str(topo))
-    return Config(**values)
+    if "topology" in values:
+        topo = values.pop("topology")
+        values["topology"] = {3: "3oo3", 2: "2oo2"}.get(topo, str(topo))
+    return (base or Config())._replace(**values)
 
 
 class MonitorReference:
     """Steps like the FMU: each cycle latches the channels whose `valid` is set with the
-    cycle's tick, then runs the core."""
+    cycle's tick, then runs the core. `on_cycle(tick, inputs, state_before, state_after,
+    outputs)`, if given, sees every cycle (tests measure what a sequence exercised)."""
 
-    def __init__(self, table_bytes: bytes, params: dict | None = None):
-        self.setup = cycle.create(config_from_parameters(params or {}), table_bytes)
+    def __init__(self, table_bytes: bytes, params: dict | None = None, base: Config | None = None,
+                 on_cycle=None):
+        self.setup = cycle.create(config_from_parameters(params or {}, base), table_bytes)
         self.state = cycle.initial_state(self.setup)
         self.reports = [None] * CHANNELS
         self.cycles = 0
+        self.on_cycle = on_cycle
 
     def step(self, inp: StepInput, cycles: int = 1) -> list:
         outs = []
@@ -82,7 +87,10 @@ class MonitorReference:
                     self.reports[i] = Report(ch.status, read_distance_dm(ch.distance), read_closing_cms(ch.closing_speed),
                                              ch.type, tick)
             train = Train(read_speed_cms(inp.speed), inp.track, inp.brake)
-            self.state, out = cycle.step(self.setup, self.state, Inputs(tuple(self.reports), train), tick)
+            inputs, before = Inputs(tuple(self.reports), train), self.state
+            self.state, out = cycle.step(self.setup, before, inputs, tick)
+            if self.on_cycle is not None:
+                self.on_cycle(tick, inputs, before, self.state, out)
             self.cycles += 1
             outs.append(out)
         return outs

@@ -35,6 +35,54 @@ TIME = Var("time", "Real", "independent", "continuous", unit="s", description="s
 
 _CFG = Config()
 
+# The monitor's parameters: every Config field (same names, units in the names, same
+# defaults and checks as monitor/core/config.py) except period_ms, which the table fixes
+# (the constant output `period_ms`), and topology, an Integer parameter of its own.
+PARAMETER_DOCS = {
+    "timeout_cycles": "a report older than this many cycles is stale (timeout_cycles x 100 ms <= 60 s)",
+    "persistence_cycles": "a 2oo2 disagreement this many cycles long is a perceptor error, 1..1000",
+    "emergency_decel_mms2": "braking declaration: guaranteed emergency deceleration from standstill up "
+                            "(speed band 1), mm/s^2, 1..20000",
+    "emergency_band2_cms": "braking declaration: speed from which emergency band 2 applies, cm/s (0: no band 2)",
+    "emergency_band2_mms2": "braking declaration: guaranteed emergency deceleration in band 2, mm/s^2, 1..20000",
+    "emergency_band3_cms": "braking declaration: speed from which emergency band 3 applies, cm/s, above band 2 "
+                           "(0: no band 3)",
+    "emergency_band3_mms2": "braking declaration: guaranteed emergency deceleration in band 3, mm/s^2, 1..20000",
+    "service_decel_mms2": "braking declaration: guaranteed service deceleration, mm/s^2, at most every emergency band's",
+    "emergency_buildup_ms": "braking declaration: equivalent emergency brake build-up time (dead time + half the "
+                            "ramp), ms, 0..30000",
+    "service_buildup_ms": "braking declaration: equivalent service brake build-up time, ms, 0..30000",
+    "traction_cutoff_ms": "braking declaration: time traction may still accelerate the train after a demand, ms, "
+                          "0..30000",
+    "max_accel_mms2": "braking declaration: largest acceleration under traction, mm/s^2, 0..5000",
+    "speed_error_permille": "braking declaration: speed measurement error, per mille of the speed, 0..500",
+    "slippery_permille": "braking declaration: deceleration factor while the train reports a slippery track, "
+                         "per mille, 1..1000",
+    "degraded_permille": "braking declaration: deceleration factor while the train reports degraded brakes, "
+                         "per mille, 1..1000",
+    "max_gradient_permille": "braking declaration: steepest downhill gradient of the line, per mille, 0..60",
+    "standstill_margin_dm": "braking declaration: stop at least this far before the obstacle, dm, 0..10000",
+    "warning_ms": "the warning curve leads SBI by this time, ms, 0..60000",
+    "emergency_release": "1: an emergency is revocable once its cause is gone; 0: held to standstill",
+    "release_confirm_cycles": "cycles in a row without an emergency cause before a revocable release, 1..1000",
+    "warning_margin_dm": "table zones: warning zone length beyond alpha1, dm",
+    "fast_closing_cms": "Model 2: closing speed from which an obstacle is fast, cm/s",
+    "safe_reaction": "demand on a system error with a degraded channel or a bad train input: 1 service, 2 emergency",
+    "recovery_cycles": "error-free cycles before DEGRADED or SAFE_STOP clear",
+    "max_overruns": "consecutive deadline overruns leading to SAFE_STOP (the FMU never overruns), 1..1000",
+    "distance_tolerance_dm": "2oo2: two PRESENT distances further apart than this raise the module flag, dm",
+}
+assert set(PARAMETER_DOCS) == set(Config._fields) - {"period_ms", "topology"}, "a Config field is not a parameter"
+CONFIG_PARAMETERS = tuple(f for f in Config._fields if f in PARAMETER_DOCS)   # in Config's order
+TOPOLOGY_CODES = {"3oo3": 3, "2oo2": 2}
+
+
+def parameter_starts(cfg: Config) -> dict:
+    """The monitor FMU's parameter start values for a configuration (topology as its code)."""
+    starts = {name: getattr(cfg, name) for name in CONFIG_PARAMETERS}
+    starts["topology"] = TOPOLOGY_CODES[cfg.topology]
+    return starts
+
 
 def _monitor() -> list[Var]:
     v = [TIME]
@@ -58,27 +106,16 @@ def _monitor() -> list[Var]:
         Var("train.track_condition", "Integer", "input", "discrete", 0, None, "0 normal, 1 slippery"),
         Var("train.brake_status", "Integer", "input", "discrete", 0, None, "0 normal, 1 degraded"),
     ]
-    docs = {
-        "timeout_cycles": "a report older than this many cycles is stale",
-        "persistence_cycles": "a 2oo2 disagreement this long is a perceptor error",
-        "service_decel_mms2": "service braking deceleration for alpha1(v), mm/s^2",
-        "emergency_decel_mms2": "emergency braking deceleration for alpha2(v) and the envelope, mm/s^2",
-        "reaction_ms": "reaction and brake build-up time in the braking distances, ms",
-        "warning_margin_dm": "warning zone length beyond alpha1, dm",
-        "fast_closing_cms": "Model 2: closing speed from which an obstacle is fast, cm/s",
-        "safe_reaction": "demand on a system error: 1 service, 2 emergency",
-        "recovery_cycles": "error-free cycles before DEGRADED or SAFE_STOP clear",
-        "distance_tolerance_dm": "2oo2: two PRESENT distances further apart than this raise the module flag, dm",
-    }
-    for name, text in docs.items():
-        v.append(Var(name, "Integer", "parameter", "fixed", getattr(_CFG, name), None, text))
+    for name in CONFIG_PARAMETERS:
+        v.append(Var(name, "Integer", "parameter", "fixed", getattr(_CFG, name), None, PARAMETER_DOCS[name]))
     v.append(Var("topology", "Integer", "parameter", "fixed", 3, None,
                  "3: 3oo3 over three 2oo2 modules (channels 1-6); 2: one 2oo2 module (channels 1-2)"))
     v += [
         Var("brake_demand", "Integer", "output", "discrete", None, None,
             "0 none, 1 service, 2 emergency (emergency until every channel has been fresh once)"),
         Var("reasons", "Integer", "output", "discrete", None, None,
-            "reason bits: 1 table, 2 envelope, 4 system_error, 8 latch, 16 init, 32 safe_stop, 64 stale, 128 perceptor, 256 deadline, 512 train_input"),
+            "reason bits: 1 table, 2 envelope (inside EBI), 4 system_error, 8 latch, 16 init, 32 safe_stop, 64 stale, "
+            "128 perceptor, 256 deadline, 512 train_input, 1024 sbi (inside SBI), 2048 warning, 4096 dispute"),
         Var("voted_distance_dm", "Integer", "output", "discrete", None, None, "voted obstacle distance in dm; 65535: none"),
         Var("node", "Integer", "output", "discrete", None, None, "controller node of the policy table"),
         Var("mode", "Integer", "output", "discrete", None, None, "0 INIT, 1 NORMAL, 2 DEGRADED, 3 SAFE_STOP"),
@@ -87,6 +124,8 @@ def _monitor() -> list[Var]:
         Var("observation", "Integer", "output", "discrete", None, None, "observation index fed to the table"),
         Var("cycle", "Integer", "output", "discrete", None, None, "cycles run (saturates at 2^31-1)"),
         Var("error_cycles", "Integer", "output", "discrete", None, None, "cycles with an error or a stale channel"),
+        Var("warning", "Boolean", "output", "discrete", None, None,
+            "the supervision warns: voted obstacle inside the warning curve, or channels dispute an obstacle"),
         Var("period_ms", "Integer", "output", "constant", _CFG.period_ms, None, "fixed internal cycle period, ms"),
         Var("table.model", "String", "output", "constant", "", None, "model the policy table was solved for"),
         Var("table.sha256", "String", "output", "constant", "", None,
@@ -115,11 +154,20 @@ def _train() -> list[Var]:
         Var("gradient", "Real", P, "fixed", 0.0, None, "track gradient in per mille, positive uphill", -60.0, 60.0),
         Var("max_traction", "Real", P, "fixed", 0.5, "m/s2", "traction acceleration available to hold the cruising speed", 0.0),
         Var("service_decel", "Real", P, "fixed", 1.0, "m/s2", "deceleration of service braking", 0.0),
-        Var("emergency_decel", "Real", P, "fixed", 3.0, "m/s2", "deceleration of emergency braking", 0.0),
+        Var("emergency_decel", "Real", P, "fixed", 3.0, "m/s2", "deceleration of emergency braking (below emergency_band2_speed, if set)", 0.0),
+        Var("emergency_band2_speed", "Real", P, "fixed", 0.0, "m/s", "emergency braking uses emergency_band2_decel from this speed (0: no band 2)", 0.0),
+        Var("emergency_band2_decel", "Real", P, "fixed", 0.0, "m/s2", "deceleration of emergency braking in band 2", 0.0),
+        Var("emergency_band3_speed", "Real", P, "fixed", 0.0, "m/s", "emergency braking uses emergency_band3_decel from this speed (0: no band 3)", 0.0),
+        Var("emergency_band3_decel", "Real", P, "fixed", 0.0, "m/s2", "deceleration of emergency braking in band 3", 0.0),
         Var("brake_delay", "Real", P, "fixed", 0.2, "s", "dead time before the brakes react to a new demand", 0.0),
         Var("brake_buildup", "Real", P, "fixed", 0.5, "s", "time for the brake force to ramp from zero to full", 0.0),
+        Var("traction_cutoff", "Real", P, "fixed", -1.0, "s",
+            "full traction this long after a brake demand, then none; negative: the cruise traction is cut when the brake level applies", None, 30.0),
+        Var("speed_error", "Real", P, "fixed", 0.0, None, "train.speed reports the true speed / (1 + speed_error): low by this fraction of itself", 0.0, 0.5),
         Var("track_condition", "Integer", P, "fixed", 0, None, "0 normal, 1 slippery (reported to the monitor)"),
         Var("brake_status", "Integer", P, "fixed", 0, None, "0 normal, 1 degraded (reported to the monitor)"),
+        Var("slippery_factor", "Real", P, "fixed", 1.0, None, "brake decelerations are multiplied by this while track_condition = 1", 0.0, 1.0),
+        Var("degraded_factor", "Real", P, "fixed", 1.0, None, "brake decelerations are multiplied by this while brake_status = 1", 0.0, 1.0),
         Var("obstacle.present", "Boolean", P, "fixed", True, None, "an obstacle is on the track"),
         Var("obstacle.position", "Real", P, "fixed", 500.0, "m", "obstacle position at t = 0, measured from the train's start", 0.0),
         Var("obstacle.speed", "Real", P, "fixed", 0.0, "m/s", "obstacle speed along the track (0: static)"),
@@ -145,14 +193,18 @@ def _train() -> list[Var]:
             Var(p + "valid", "Boolean", "output", "discrete", None, None, f"channel {i} sent a report in this step"),
         ]
     v += [
-        Var("train.speed", "Real", "output", "continuous", None, "m/s", "train speed"),
+        Var("train.speed", "Real", "output", "continuous", None, "m/s", "train speed as reported to the monitor (true_speed / (1 + speed_error))"),
         Var("train.track_condition", "Integer", "output", "discrete", None, None, "0 normal, 1 slippery"),
         Var("train.brake_status", "Integer", "output", "discrete", None, None, "0 normal, 1 degraded"),
+        Var("true_speed", "Real", "output", "continuous", None, "m/s", "train speed"),
         Var("position", "Real", "output", "continuous", None, "m", "train position"),
         Var("acceleration", "Real", "output", "continuous", None, "m/s2", "train acceleration"),
         Var("true_distance", "Real", "output", "continuous", None, "m", "true distance to the obstacle (1e9 with no obstacle)"),
         Var("brake_level", "Integer", "output", "discrete", None, None, "brake level in effect after the brake delay"),
-        Var("collided", "Boolean", "output", "discrete", None, None, "the train reached the obstacle"),
+        Var("brake_decel", "Real", "output", "continuous", None, "m/s2", "brake deceleration acting now"),
+        Var("collided", "Boolean", "output", "discrete", None, None, "train and obstacle met (see impact_speed)"),
+        Var("impact_speed", "Real", "output", "discrete", None, "m/s",
+            "our speed when train and obstacle met: > 0 a collision, 0 an oncoming obstacle reached a standing train"),
     ]
     return v
 

@@ -34,11 +34,11 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from fmu import generate
-from fmu.build import C_DIR, CFLAGS, compiler
+from fmu.build import C_DIR, CFLAGS, BuildError, build_monitor, compiler
 from fmu.driver import MonitorDriver, vr_of
 from fmu.reference import CHANNELS, ChannelInput, MonitorReference, StepInput, config_from_parameters
 from fmu.variables import MONITOR, MONITOR_OUTPUTS, TRAIN
-from monitor.core.config import ConfigurationError, check
+from monitor.core.config import DECLARATION_FIELDS, Config, ConfigurationError, check
 from monitor.core.table import decode
 from monitor.tables import read
 
@@ -356,39 +356,152 @@ def test_after_an_error_only_reset_brings_the_instance_back(fmi, instance):
 
 BAD_PARAMETERS = [
     ("topology", {"topology": 4}),
-    ("persistence_cycles", {"timeout_cycles": 3, "persistence_cycles": 4}),
-    ("emergency_decel_mms2", {"service_decel_mms2": 1000, "emergency_decel_mms2": 900}),
+    ("timeout_cycles", {"timeout_cycles": 601}),                       # 601 x 100 ms > 60 s
+    ("persistence_cycles", {"persistence_cycles": 1001}),
+    ("emergency_decel_mms2", {"emergency_decel_mms2": 0}),
+    ("service_decel_mms2", {"service_decel_mms2": 2300}),              # above band 2's 2200
+    ("emergency_band2_cms", {"emergency_band2_cms": 12001}),
+    ("emergency_band3_cms", {"emergency_band3_cms": 2000}),            # below band 2 (3000 cm/s)
+    ("emergency_band2_mms2", {"emergency_band2_mms2": 0}),
+    ("emergency_band3_mms2", {"emergency_band3_cms": 5000, "emergency_band3_mms2": 20001}),
+    ("emergency_buildup_ms", {"emergency_buildup_ms": -1}),
+    ("traction_cutoff_ms", {"traction_cutoff_ms": 30001}),
+    ("max_accel_mms2", {"max_accel_mms2": 5001}),
+    ("speed_error_permille", {"speed_error_permille": 501}),
+    ("slippery_permille", {"slippery_permille": 1001}),
+    ("degraded_permille", {"degraded_permille": 0}),
+    ("max_gradient_permille", {"max_gradient_permille": 60, "slippery_permille": 300}),   # cannot stop downhill
+    ("service_decel_mms2", {"service_decel_mms2": 300}),               # the service brake cannot stop downhill
+    ("standstill_margin_dm", {"standstill_margin_dm": 10001}),
+    ("warning_ms", {"warning_ms": -1}),
+    ("emergency_release", {"emergency_release": 2}),
+    ("release_confirm_cycles", {"release_confirm_cycles": 0}),
     ("safe_reaction", {"safe_reaction": 0}),
+    ("max_overruns", {"max_overruns": 0}),
+    ("distance_tolerance_dm", {"distance_tolerance_dm": 60001}),
 ]
+BAD_IDS = [f"{name}-{'-'.join(f'{v}' for v in params.values())}" for name, params in BAD_PARAMETERS]
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
-@pytest.mark.parametrize("name, params", BAD_PARAMETERS, ids=[b[0] for b in BAD_PARAMETERS])
+@pytest.mark.parametrize("name, params", BAD_PARAMETERS, ids=BAD_IDS)
 def test_bad_parameters_are_refused_at_exit_initialization_like_the_python_core(name, params, fmi, instance):
     """fmiExitInitializationMode refuses the configuration with a message naming the
-    parameter; the Python core refuses the same values naming the same parameter."""
+    parameter; the Python core refuses the same values naming the same parameter first."""
     fmu = instance(("m1", fmi))
     fmu.enter_init()
     for key, value in params.items():
         fmu.set(key, value)
     text = fmu.refused(fmu.slave.exitInitializationMode)
-    assert fmu.fn("ExitInitializationMode") in text and f"{name} = {params[name]}" in text
-    with pytest.raises(ConfigurationError, match=name):
+    assert fmu.fn("ExitInitializationMode") in text and f"{name} = {params[name]}:" in text
+    with pytest.raises(ConfigurationError) as exc:
         check(config_from_parameters(params))
-    with pytest.raises(ConfigurationError, match=name):
+    assert str(exc.value).startswith(f"{name} = "), exc.value
+    with pytest.raises(ConfigurationError, match=f"^{name} = "):
         MonitorReference(read("m1"), params)
+
+
+VALID = {"topology": 2, "timeout_cycles": 5, "persistence_cycles": 7, "service_decel_mms2": 1200,
+         "emergency_decel_mms2": 1200, "emergency_band2_cms": 0, "emergency_band2_mms2": -7, "safe_reaction": 1,
+         "recovery_cycles": 1, "emergency_release": 0, "release_confirm_cycles": 1, "max_gradient_permille": 0,
+         "warning_ms": 0, "speed_error_permille": 0, "emergency_buildup_ms": 0, "traction_cutoff_ms": 0}
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
 def test_a_valid_non_default_configuration_is_accepted_by_both_cores(fmi, instance):
-    """The refusals above are about the values, not about setting parameters at all."""
-    params = {"topology": 2, "timeout_cycles": 5, "persistence_cycles": 5, "service_decel_mms2": 1200,
-              "emergency_decel_mms2": 1200, "safe_reaction": 1, "recovery_cycles": 1}
-    check(config_from_parameters(params))
+    """The refusals above are about the values, not about setting parameters at all (an
+    unused band's deceleration may be anything, as in Python); both cores then agree."""
+    check(config_from_parameters(VALID))
     fmu = instance(("m1", fmi))
-    fmu.init(params)
+    fmu.init(VALID)
     fmu.step(0.1)
     assert fmu.get("topology") == 2 and fmu.get("cycle") == 1
+    assert all(fmu.get(name) == value for name, value in VALID.items())
+
+
+# ---- 5b: start values, and an FMU built from a braking declaration -----------------------------
+
+def test_every_config_field_is_a_parameter_with_the_core_default():
+    """Every Config field but period_ms (the constant output the table fixes) is an FMU
+    parameter of the same name; its start value is Config()'s, and the reasons
+    description lists the new bits."""
+    params = {v.name: v for v in MONITOR if v.causality == "parameter"}
+    assert set(params) == set(Config._fields) - {"period_ms"}
+    for name, v in params.items():
+        assert v.type == "Integer" and v.variability == "fixed" and v.description
+        assert v.start == (3 if name == "topology" else getattr(Config(), name)), name
+    reasons = next(v for v in MONITOR if v.name == "reasons").description
+    assert "1024 sbi" in reasons and "2048 warning" in reasons and "4096 dispute" in reasons
+    assert next(v for v in MONITOR if v.name == "warning").type == "Boolean"
+
+
+@pytest.mark.parametrize("key", MONITOR_KEYS, ids=_id)
+def test_unset_parameters_start_at_the_core_defaults(key, instance):
+    """An importer that sets nothing gets the values the model description states, which
+    are the core's defaults, in C as well (rg_config_default and the generated starts)."""
+    fmu = instance(key)
+    fmu.init()
+    for v in MONITOR:
+        if v.causality == "parameter":
+            assert fmu.get(v.name) == v.start, v.name
+
+
+DECLARATION = """
+[braking]
+emergency_decel = [[0.0, 1.9], [25.0, 1.7], [40.0, 1.5]]
+service_decel = 0.7
+emergency_buildup_s = 1.6
+service_buildup_s = 2.5
+traction_cutoff_s = 1.1
+max_accel = 0.8
+speed_error = 0.03
+slippery_factor = 0.6
+degraded_factor = 0.75
+max_downhill_gradient = 12
+standstill_margin_m = 8.0
+"""
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_an_fmu_built_from_a_braking_declaration_starts_with_it(fmi, tmp_path):
+    """build_monitor(config=...) with a declaration applied to the defaults: the model
+    description's start values and the C start values are the declaration's, so an
+    importer that sets no parameter runs it, and the FMU then equals the Python core
+    under that configuration cycle for cycle."""
+    from monitor import declaration
+
+    path = tmp_path / "train.toml"
+    path.write_text(DECLARATION)
+    cfg = declaration.config_with(Config(), path)
+    assert cfg.emergency_band3_cms == 4000 and cfg.emergency_buildup_ms == 1600
+    fmu_path = build_monitor(read("m1"), fmi, tmp_path, config=cfg)
+    md = read_model_description(str(fmu_path))
+    starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
+    for name in cfg._fields:
+        if name not in ("period_ms", "topology"):
+            assert int(starts[name]) == getattr(cfg, name), name
+    default = read_model_description(str(build_monitor(read("m1"), fmi, tmp_path / "default")))
+    assert (md.guid if fmi == 2 else md.instantiationToken) != (default.guid if fmi == 2 else default.instantiationToken)
+    driver = MonitorDriver(fmu_path)
+    try:
+        get = driver.slave.getInteger if fmi == 2 else driver.slave.getInt32
+        for name in DECLARATION_FIELDS:
+            assert get([vr_of(MONITOR, name)])[0] == getattr(cfg, name), name
+        ref = MonitorReference(read("m1"), {}, base=cfg)
+        for inp, cycles in _approach():
+            driver.set(inp)
+            assert driver.step(cycles) == tuple(ref.step(inp, cycles)[-1])
+    finally:
+        driver.close()
+
+
+def test_build_refuses_a_configuration_the_core_refuses(tmp_path):
+    """A declaration the core would refuse, or one for another cycle period than the
+    table's, gives a BuildError naming the value, not an FMU that cannot initialise."""
+    with pytest.raises(BuildError, match="service_decel_mms2 = 2300"):
+        build_monitor(read("m1"), 2, tmp_path, config=Config(service_decel_mms2=2300))
+    with pytest.raises(BuildError, match="period_ms = 200"):
+        build_monitor(read("m1"), 2, tmp_path, config=Config(period_ms=200, timeout_cycles=3))
 
 
 # ---- 6: NaN and out-of-range inputs ------------------------------------------------------------

@@ -1,8 +1,9 @@
 """Machine-checked proof of the C core (fmu/c/core) with Frama-C: WP and EVA.
 
 1. WP (`-wp -wp-rte`, provers z3 and cvc4 through why3) proves the ACSL contracts written on
-   the core's voters, freshness, zone, envelope and latch functions in rg_core.c (the PEP 316
-   contracts of monitor/core in C), and that none of them has a runtime error (RTE guards:
+   the core's voters, freshness and report age, braking-curve pieces, zone, supervision ladder,
+   combination and latch functions in rg_core.c (the PEP 316 contracts of monitor/core in C),
+   and that none of them has a runtime error (RTE guards:
    signed overflow, signed downcast, unsigned overflow, invalid memory access, division by
    zero). It also proves the one assertion inside rg_step that EVA relies on
    (`present_in_range`: a channel the voter sees as PRESENT has its fields in range).
@@ -41,10 +42,12 @@ CORE_DIR = REPO / "fmu" / "c" / "core"
 PROOF_DIR = REPO / "fmu" / "c" / "proof"
 CORE_FILES = ("rg_core.c", "rg_core.h", "rg_sha256.c", "rg_sha256.h")
 
-# the functions whose ACSL contracts WP proves (issue: voters, freshness, zone, latch)
+# the functions whose ACSL contracts WP proves: freshness, voters, the report's age, the
+# braking-curve pieces (braking.py, config.py's gradient), zone, supervision, combine, latch
 FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
-             "rg_distances_disagree", "rg_vote_3oo3", "rg_braking_distance_dm", "rg_zone",
-             "rg_envelope_demand", "rg_combine", "rg_latch")
+             "rg_distances_disagree", "rg_vote_3oo3", "rg_age_ms", "rg_gradient_accel_mms2", "rg_scaled_decel_mms2",
+             "rg_effective_decel_mms2", "rg_run_dm", "rg_speed_after_cms", "rg_band_stop", "rg_obstacle_run_dm",
+             "rg_cap_dm", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_latch")
 # assertions inside rg_step that WP proves and EVA uses
 STEP_ASSERTIONS = ("present_in_range",)
 
@@ -500,7 +503,7 @@ def markdown(result: dict) -> str:
 
 
 def section(out_dir: Path, quick: bool, progress: Progress) -> Section:
-    """`railguard verify` part: the same proof in quick and full mode (it takes under a minute)."""
+    """`railguard verify` part: the same proof in quick and full mode (it takes about 2.5 min)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     result = run(progress, keep=out / "proof")

@@ -7,28 +7,44 @@
 #include "rg_sha256.h"
 
 /* ACSL: the contracts on the functions below are the PEP 316 contracts of monitor/core
- * (freshness.py, voter.py, envelope.py), proved with Frama-C WP; fmu/c/proof/ holds the
- * EVA driver for the whole step; docs/proof.md says how to run both and what they cover.
- * Where a Python precondition is not needed by the C function it is left out (the contract
- * then holds for every int32 input, which is stronger) or becomes the premise of the
- * ensures that needs it. */
+ * (freshness.py, voter.py, braking.py, envelope.py, config.py's gradient), proved with
+ * Frama-C WP; fmu/c/proof/ holds the EVA driver for the whole step; docs/proof.md says how
+ * to run both and what they cover. Where a Python precondition is not needed by the C
+ * function it is left out (the contract then holds for every input, which is stronger) or
+ * becomes the premise of the ensures that needs it; a C precondition can be wider than
+ * Python's where EVA needs it (the range is then whatever the int64 arithmetic allows). */
 /*@ predicate rg_in_range_p(integer status, integer distance_dm, integer closing_cms, integer obstacle) =
         0 <= status <= 2 && 0 <= distance_dm <= 60000 && -15000 <= closing_cms <= 15000 && 0 <= obstacle <= 2;
     predicate rg_fresh_p(integer received, integer now, integer timeout_ticks) =
         received <= now && now - received <= timeout_ticks;
     logic integer rg_max3(integer a, integer b, integer c) = \max(a, \max(b, c));
     logic integer rg_min3(integer a, integer b, integer c) = \min(a, \min(b, c));
-    logic integer rg_braking_num(integer v, integer a, integer t) = v * v * 10000 + 2 * a * v * t;
+    logic integer rg_run_num(integer v, integer a, integer t) = 2 * v * t * 10000 + a * t * t;
 */
 
 void rg_config_default(rg_config *cfg)
 {
     cfg->period_ms = 100;
     cfg->timeout_cycles = 3;
-    cfg->persistence_cycles = 3;
-    cfg->service_decel_mms2 = 1000;
-    cfg->emergency_decel_mms2 = 3000;
-    cfg->reaction_ms = 500;
+    cfg->persistence_cycles = 10;
+    cfg->emergency_decel_mms2 = 2400;
+    cfg->emergency_band2_cms = 3000;
+    cfg->emergency_band2_mms2 = 2200;
+    cfg->emergency_band3_cms = 0;
+    cfg->emergency_band3_mms2 = 0;
+    cfg->service_decel_mms2 = 800;
+    cfg->emergency_buildup_ms = 1000;
+    cfg->service_buildup_ms = 2000;
+    cfg->traction_cutoff_ms = 800;
+    cfg->max_accel_mms2 = 500;
+    cfg->speed_error_permille = 20;
+    cfg->slippery_permille = 700;
+    cfg->degraded_permille = 800;
+    cfg->max_gradient_permille = 20;
+    cfg->standstill_margin_dm = 50;
+    cfg->warning_ms = 2000;
+    cfg->emergency_release = RG_RELEASE_REVOCABLE;
+    cfg->release_confirm_cycles = 5;
     cfg->warning_margin_dm = 2000;
     cfg->fast_closing_cms = 2000;
     cfg->safe_reaction = RG_EMERGENCY;
@@ -38,46 +54,121 @@ void rg_config_default(rg_config *cfg)
     cfg->distance_tolerance_dm = 100;
 }
 
-static int refuse(char *msg, size_t len, const char *name, long value, const char *why)
+static int refuse(char *msg, size_t len, const char *name, long long value, const char *why)
 {
     if (msg != NULL && len > 0) {
-        snprintf(msg, len, "%s = %ld: %s", name, value, why);
+        snprintf(msg, len, "%s = %lld: %s", name, value, why);
     }
     return 1;
+}
+
+static const char DECEL_WHY[] = "a deceleration must be 1..20000 mm/s^2 (magnitude)";
+static const char BAND_WHY[] = "must be 0 (no band) or a speed up to 12000 cm/s";
+static const char TIME_WHY[] = "must be 0..30000 ms";
+static const char FACTOR_WHY[] =
+    "a deceleration factor must be 1..1000 per mille (adverse conditions never brake better)";
+
+/* the weakest guaranteed emergency deceleration over the speed bands */
+static int64_t weakest_band(const rg_config *c)
+{
+    rg_band bands[RG_MAX_BANDS] = {{0, 0}, {0, 0}, {0, 0}};
+    int32_t n = rg_emergency_bands(c, bands), i;
+    int64_t a = bands[0].decel_mms2;
+    for (i = 1; i < n; i++) {
+        if (bands[i].decel_mms2 < a) a = bands[i].decel_mms2;
+    }
+    return a;
+}
+
+/* config.check's checks of the braking declaration, in its order */
+static int check_declaration(const rg_config *c, char *msg, size_t len)
+{
+    int64_t g, weakest;
+    if (c->emergency_decel_mms2 < 1 || c->emergency_decel_mms2 > 20000)
+        return refuse(msg, len, "emergency_decel_mms2", c->emergency_decel_mms2, DECEL_WHY);
+    if (c->service_decel_mms2 < 1 || c->service_decel_mms2 > 20000)
+        return refuse(msg, len, "service_decel_mms2", c->service_decel_mms2, DECEL_WHY);
+    if (c->emergency_band2_cms < 0 || c->emergency_band2_cms > RG_MAX_SPEED_CMS)
+        return refuse(msg, len, "emergency_band2_cms", c->emergency_band2_cms, BAND_WHY);
+    if (c->emergency_band3_cms < 0 || c->emergency_band3_cms > RG_MAX_SPEED_CMS)
+        return refuse(msg, len, "emergency_band3_cms", c->emergency_band3_cms, BAND_WHY);
+    if (c->emergency_band3_cms != 0
+        && !(c->emergency_band3_cms > c->emergency_band2_cms && c->emergency_band2_cms > 0))
+        return refuse(msg, len, "emergency_band3_cms", c->emergency_band3_cms,
+                      "band 3 needs band 2 and must start above it");
+    if (c->emergency_band2_cms != 0 && (c->emergency_band2_mms2 < 1 || c->emergency_band2_mms2 > 20000))
+        return refuse(msg, len, "emergency_band2_mms2", c->emergency_band2_mms2, DECEL_WHY);
+    if (c->emergency_band3_cms != 0 && (c->emergency_band3_mms2 < 1 || c->emergency_band3_mms2 > 20000))
+        return refuse(msg, len, "emergency_band3_mms2", c->emergency_band3_mms2, DECEL_WHY);
+    weakest = weakest_band(c);
+    if (c->service_decel_mms2 > weakest)
+        return refuse(msg, len, "service_decel_mms2", c->service_decel_mms2,
+                      "must not exceed the guaranteed emergency deceleration of any speed band");
+    if (c->emergency_buildup_ms < 0 || c->emergency_buildup_ms > 30000)
+        return refuse(msg, len, "emergency_buildup_ms", c->emergency_buildup_ms, TIME_WHY);
+    if (c->service_buildup_ms < 0 || c->service_buildup_ms > 30000)
+        return refuse(msg, len, "service_buildup_ms", c->service_buildup_ms, TIME_WHY);
+    if (c->traction_cutoff_ms < 0 || c->traction_cutoff_ms > 30000)
+        return refuse(msg, len, "traction_cutoff_ms", c->traction_cutoff_ms, TIME_WHY);
+    if (c->max_accel_mms2 < 0 || c->max_accel_mms2 > 5000)
+        return refuse(msg, len, "max_accel_mms2", c->max_accel_mms2, "must be 0..5000 mm/s^2");
+    if (c->speed_error_permille < 0 || c->speed_error_permille > 500)
+        return refuse(msg, len, "speed_error_permille", c->speed_error_permille,
+                      "must be 0..500 (per mille of the speed)");
+    if (c->slippery_permille < 1 || c->slippery_permille > 1000)
+        return refuse(msg, len, "slippery_permille", c->slippery_permille, FACTOR_WHY);
+    if (c->degraded_permille < 1 || c->degraded_permille > 1000)
+        return refuse(msg, len, "degraded_permille", c->degraded_permille, FACTOR_WHY);
+    if (c->max_gradient_permille < 0 || c->max_gradient_permille > 60)
+        return refuse(msg, len, "max_gradient_permille", c->max_gradient_permille,
+                      "must be 0..60 per mille (downhill)");
+    if (c->standstill_margin_dm < 0 || c->standstill_margin_dm > 10000)
+        return refuse(msg, len, "standstill_margin_dm", c->standstill_margin_dm, "must be 0..10000 dm");
+    g = rg_gradient_accel_mms2(c->max_gradient_permille);
+    if (weakest * c->slippery_permille * c->degraded_permille / 1000000 - g < RG_MIN_GUARANTEED_DECEL_MMS2)
+        return refuse(msg, len, "max_gradient_permille", c->max_gradient_permille,
+                      "on this downhill with slippery track and degraded brakes the guaranteed deceleration is "
+                      "below 100 mm/s^2: the train cannot be said to stop");
+    if ((int64_t)c->service_decel_mms2 * c->slippery_permille * c->degraded_permille / 1000000 - g
+        < RG_MIN_GUARANTEED_DECEL_MMS2)
+        return refuse(msg, len, "service_decel_mms2", c->service_decel_mms2,
+                      "too weak to stop the train on the steepest downhill with slippery track and degraded brakes");
+    return 0;
 }
 
 int rg_config_check(const rg_config *c, char *msg, size_t len)
 {
     if (c->modules != 3 && c->modules != 1)
-        return refuse(msg, len, "modules", c->modules, "must be 3 (3oo3 over three 2oo2 modules) or 1 (one 2oo2 module)");
+        return refuse(msg, len, "modules", c->modules,
+                      "must be 3 (3oo3 over three 2oo2 modules) or 1 (one 2oo2 module)");
     if (c->period_ms < 1 || c->period_ms > 10000)
         return refuse(msg, len, "period_ms", c->period_ms, "must be 1..10000 ms");
     if (c->timeout_cycles < 1)
-        return refuse(msg, len, "timeout_cycles", c->timeout_cycles, "must be at least 1 cycle (0 would make every report stale)");
-    if (c->persistence_cycles < 1)
-        return refuse(msg, len, "persistence_cycles", c->persistence_cycles, "must be at least 1 cycle");
-    if (c->persistence_cycles > c->timeout_cycles)
-        return refuse(msg, len, "persistence_cycles", c->persistence_cycles, "must not exceed timeout_cycles");
-    if (c->service_decel_mms2 <= 0)
-        return refuse(msg, len, "service_decel_mms2", c->service_decel_mms2, "a deceleration must be positive (mm/s^2, magnitude)");
-    if (c->emergency_decel_mms2 <= 0)
-        return refuse(msg, len, "emergency_decel_mms2", c->emergency_decel_mms2, "a deceleration must be positive (mm/s^2, magnitude)");
-    if (c->emergency_decel_mms2 < c->service_decel_mms2)
-        return refuse(msg, len, "emergency_decel_mms2", c->emergency_decel_mms2, "must be at least service_decel_mms2");
-    if (c->emergency_decel_mms2 > 20000)
-        return refuse(msg, len, "emergency_decel_mms2", c->emergency_decel_mms2, "more than 20 m/s^2 is not a train");
-    if (c->reaction_ms < 0 || c->reaction_ms > 60000)
-        return refuse(msg, len, "reaction_ms", c->reaction_ms, "must be 0..60000 ms");
+        return refuse(msg, len, "timeout_cycles", c->timeout_cycles,
+                      "must be at least 1 cycle (0 would make every report stale)");
+    if ((int64_t)c->timeout_cycles * c->period_ms > RG_MAX_AGE_MS)
+        return refuse(msg, len, "timeout_cycles", c->timeout_cycles,
+                      "a report may be at most 60 s old (timeout_cycles x period_ms > 60000 ms)");
+    if (c->persistence_cycles < 1 || c->persistence_cycles > 1000)
+        return refuse(msg, len, "persistence_cycles", c->persistence_cycles, "must be 1..1000 cycles");
+    if (check_declaration(c, msg, len) != 0) return 1;
+    if (c->warning_ms < 0 || c->warning_ms > 60000)
+        return refuse(msg, len, "warning_ms", c->warning_ms, "must be 0..60000 ms");
+    if (c->emergency_release != RG_RELEASE_AT_STANDSTILL && c->emergency_release != RG_RELEASE_REVOCABLE)
+        return refuse(msg, len, "emergency_release", c->emergency_release,
+                      "must be 0 (held to standstill) or 1 (revocable when its cause is gone)");
+    if (c->release_confirm_cycles < 1 || c->release_confirm_cycles > 1000)
+        return refuse(msg, len, "release_confirm_cycles", c->release_confirm_cycles, "must be 1..1000 cycles");
     if (c->warning_margin_dm < 0 || c->warning_margin_dm > 60000)
         return refuse(msg, len, "warning_margin_dm", c->warning_margin_dm, "must be 0..60000 dm");
     if (c->fast_closing_cms < 1 || c->fast_closing_cms > 15000)
         return refuse(msg, len, "fast_closing_cms", c->fast_closing_cms, "must be 1..15000 cm/s");
     if (c->safe_reaction != RG_SERVICE && c->safe_reaction != RG_EMERGENCY)
         return refuse(msg, len, "safe_reaction", c->safe_reaction, "must be 1 (service) or 2 (emergency)");
-    if (c->recovery_cycles < 1)
-        return refuse(msg, len, "recovery_cycles", c->recovery_cycles, "must be at least 1 cycle");
-    if (c->max_overruns < 1)
-        return refuse(msg, len, "max_overruns", c->max_overruns, "must be at least 1");
+    if (c->recovery_cycles < 1 || c->recovery_cycles > 100000)
+        return refuse(msg, len, "recovery_cycles", c->recovery_cycles, "must be 1..100000 cycles");
+    if (c->max_overruns < 1 || c->max_overruns > 1000)
+        return refuse(msg, len, "max_overruns", c->max_overruns, "must be 1..1000");
     if (c->distance_tolerance_dm < 0 || c->distance_tolerance_dm > 60000)
         return refuse(msg, len, "distance_tolerance_dm", c->distance_tolerance_dm, "must be 0..60000 dm");
     return 0;
@@ -153,6 +244,7 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->healthy = 0;
     s->cycle = 0;
     s->error_cycles = 0;
+    s->calm = 0;
 }
 
 /*@ assigns \nothing;
@@ -269,18 +361,225 @@ void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
     *error = f[0] || f[1] || f[2] || s[0] != s[1] || s[1] != s[2] || st == RG_DEGRADED;
 }
 
-/*@ requires 0 <= speed_cms <= 12000 && 1 <= decel_mms2 <= 20000 && 0 <= reaction_ms <= 60000;
+/*@ requires 0 <= limit <= 60000;
+    assigns \nothing;
+    ensures 0 <= \result <= limit;
+    ensures rg_fresh_p(received, now, limit) ==> \result == now - received;
+*/
+int32_t rg_age_ms(int64_t received, int64_t now, int64_t limit)
+{
+    /* the age of a fresh report, now - received, for every int64 tick without an overflow
+     * (as in rg_is_fresh); anything older reads as `limit` */
+    int64_t d;
+    if (received >= 0) {
+        if (now < received) return 0;
+        d = now - received;
+    } else if (now < 0) {
+        if (now < received) return 0;
+        d = now - received;
+    } else if (now > limit || received < now - limit) {
+        return (int32_t)limit;
+    } else {
+        d = now - received;
+    }
+    /* (d >= 0 in every branch; EVA, which does not relate d to the branch taken, reads
+     * the range from these two tests) */
+    if (d < 0) d = 0;
+    return d < limit ? (int32_t)d : (int32_t)limit;
+}
+
+/*@ requires 0 <= gradient_permille <= 60;
+    assigns \nothing;
+    ensures \result * 1000 >= 9810 * gradient_permille;
+    ensures (\result - 1) * 1000 < 9810 * gradient_permille || \result == 0;
+*/
+int32_t rg_gradient_accel_mms2(int32_t gradient_permille)
+{
+    return (9810 * gradient_permille + 999) / 1000;
+}
+
+int32_t rg_emergency_bands(const rg_config *cfg, rg_band bands[RG_MAX_BANDS])
+{
+    int32_t n = 1;
+    bands[0].from_cms = 0;
+    bands[0].decel_mms2 = cfg->emergency_decel_mms2;
+    if (cfg->emergency_band2_cms != 0) {
+        bands[1].from_cms = cfg->emergency_band2_cms;
+        bands[1].decel_mms2 = cfg->emergency_band2_mms2;
+        n = 2;
+        if (cfg->emergency_band3_cms != 0) {
+            bands[2].from_cms = cfg->emergency_band3_cms;
+            bands[2].decel_mms2 = cfg->emergency_band3_mms2;
+            n = 3;
+        }
+    }
+    return n;
+}
+
+/*@ requires 0 <= decel_mms2 <= 20000 && 0 <= factor_permille <= 1000;
+    assigns \nothing;
+    ensures 0 <= \result <= decel_mms2;
+    ensures \result * 1000 <= decel_mms2 * factor_permille;
+    ensures (\result + 1) * 1000 > decel_mms2 * factor_permille;
+*/
+int64_t rg_scaled_decel_mms2(int64_t decel_mms2, int64_t factor_permille)
+{
+    return decel_mms2 * factor_permille / 1000;
+}
+
+/*@ requires 0 <= decel_mms2 <= 20000 && 1 <= slippery_permille <= 1000 && 1 <= degraded_permille <= 1000;
+    requires 0 <= gradient_mms2 <= 1000;
+    assigns \nothing;
+    ensures \result <= decel_mms2 - gradient_mms2;
+    ensures \result >= -gradient_mms2;
+    ensures track == 0 && brake == 0 ==> \result == decel_mms2 - gradient_mms2;
+*/
+int64_t rg_effective_decel_mms2(int64_t decel_mms2, int32_t track, int32_t brake, int64_t slippery_permille,
+                                int64_t degraded_permille, int64_t gradient_mms2)
+{
+    int64_t a = track ? rg_scaled_decel_mms2(decel_mms2, slippery_permille) : decel_mms2;
+    if (brake) a = rg_scaled_decel_mms2(a, degraded_permille);
+    return a - gradient_mms2;
+}
+
+/*@ requires 0 <= speed_cms <= 1000000 && 0 <= accel_mms2 <= 10000 && 0 <= time_ms <= 200000;
     assigns \nothing;
     ensures \result >= 0;
-    ensures \result * 2 * decel_mms2 * 10000 >= rg_braking_num(speed_cms, decel_mms2, reaction_ms);
-    ensures (\result - 1) * 2 * decel_mms2 * 10000 < rg_braking_num(speed_cms, decel_mms2, reaction_ms) || \result == 0;
+    ensures \result * 200000000 >= rg_run_num(speed_cms, accel_mms2, time_ms);
+    ensures (\result - 1) * 200000000 < rg_run_num(speed_cms, accel_mms2, time_ms);
 */
-int32_t rg_braking_distance_dm(int32_t speed_cms, int32_t decel_mms2, int32_t reaction_ms)
+int64_t rg_run_dm(int64_t speed_cms, int64_t accel_mms2, int64_t time_ms)
 {
-    int64_t v = speed_cms, a = decel_mms2, t = reaction_ms;
-    int64_t num = v * v * 10000 + 2 * a * v * t;
-    int64_t den = 2 * a * 10000;
-    return (int32_t)((num + den - 1) / den);
+    /* v t + a t^2 / 2 in dm, rounded up: cm/s x ms = 1e-5 m, mm/s^2 x ms^2 = 1e-9 m */
+    int64_t num = 2 * speed_cms * time_ms * 10000 + accel_mms2 * time_ms * time_ms;
+    return (num + 199999999) / 200000000;
+}
+
+/*@ requires 0 <= speed_cms <= 1000000 && 0 <= accel_mms2 <= 10000 && 0 <= time_ms <= 200000;
+    assigns \nothing;
+    ensures \result >= speed_cms;
+    ensures (\result - speed_cms) * 10000 >= accel_mms2 * time_ms;
+    ensures (\result - speed_cms - 1) * 10000 < accel_mms2 * time_ms;
+*/
+int64_t rg_speed_after_cms(int64_t speed_cms, int64_t accel_mms2, int64_t time_ms)
+{
+    return speed_cms + (accel_mms2 * time_ms + 9999) / 10000;
+}
+
+/*@ requires 0 <= speed_cms <= 1000000 && 0 <= lo_cms && 1 <= decel_mms2 <= 20000;
+    requires \valid(dist_dm) && \valid(time_ms) && \separated(dist_dm, time_ms);
+    assigns *dist_dm, *time_ms;
+    ensures *dist_dm >= 0 && *time_ms >= 0;
+    ensures speed_cms <= lo_cms ==> *dist_dm == 0 && *time_ms == 0;
+*/
+void rg_band_stop(int64_t speed_cms, int64_t lo_cms, int64_t hi_cms, int64_t decel_mms2, int64_t *dist_dm,
+                  int64_t *time_ms)
+{
+    /* the part [lo, top) of the band below the speed; (top + lo) (top - lo) = top^2 - lo^2,
+     * Python's numerator, written so that EVA sees it is positive */
+    int64_t top = (hi_cms < 0 || speed_cms < hi_cms) ? speed_cms : hi_cms;
+    int64_t span = top - lo_cms;
+    if (span <= 0) {
+        *dist_dm = 0;
+        *time_ms = 0;
+        return;
+    }
+    *dist_dm = ((top + lo_cms) * span + 2 * decel_mms2 - 1) / (2 * decel_mms2);   /* (cm/s)^2 / (mm/s^2) = dm */
+    *time_ms = (span * 10000 + decel_mms2 - 1) / decel_mms2;                      /* (cm/s) / (mm/s^2) = 10 s */
+}
+
+void rg_stop_dm_ms(int64_t speed_cms, const rg_band *bands, int32_t count, int64_t *dist_dm, int64_t *time_ms)
+{
+    int32_t i;
+    *dist_dm = 0;
+    *time_ms = 0;
+    for (i = 0; i < count; i++) {
+        int64_t d, t;
+        rg_band_stop(speed_cms, bands[i].from_cms, i + 1 < count ? bands[i + 1].from_cms : -1, bands[i].decel_mms2,
+                     &d, &t);
+        *dist_dm += d;
+        *time_ms += t;
+    }
+}
+
+/*@ requires obstacle_cms <= 1000000 && 0 <= time_ms <= 10000000000;
+    assigns \nothing;
+    ensures \result >= 0;
+    ensures obstacle_cms <= 0 ==> \result == 0;
+    ensures obstacle_cms > 0 ==> \result * 10000 >= obstacle_cms * time_ms;
+    ensures obstacle_cms > 0 ==> (\result - 1) * 10000 < obstacle_cms * time_ms;
+*/
+int64_t rg_obstacle_run_dm(int64_t obstacle_cms, int64_t time_ms)
+{
+    if (obstacle_cms <= 0) return 0;
+    return (obstacle_cms * time_ms + 9999) / 10000;
+}
+
+/*@ requires x >= 0;
+    assigns \nothing;
+    ensures \result == \min(x, 1000000);
+*/
+int32_t rg_cap_dm(int64_t x)
+{
+    return x < RG_CURVE_CAP_DM ? (int32_t)x : RG_CURVE_CAP_DM;
+}
+
+/* The brake's bands under the reported conditions: the emergency bands, or the service
+ * brake alone (one band). Never below 1 mm/s^2: an accepted configuration guarantees at
+ * least 99 (config.check's worst case, less one for the two roundings), so this guard
+ * changes nothing there; it keeps the division in rg_band_stop defined for EVA, which
+ * analyses each configuration field over its range on its own. */
+static int32_t conditioned_bands(const rg_config *cfg, int32_t track, int32_t brake, int32_t service, int64_t g,
+                                 rg_band bands[RG_MAX_BANDS])
+{
+    int32_t n = 1, i;
+    if (service) {
+        bands[0].from_cms = 0;
+        bands[0].decel_mms2 = cfg->service_decel_mms2;
+    } else {
+        n = rg_emergency_bands(cfg, bands);
+    }
+    for (i = 0; i < RG_MAX_BANDS; i++) {   /* (the unused ones too: EVA merges the band index) */
+        int64_t a = rg_effective_decel_mms2(bands[i].decel_mms2, track, brake, cfg->slippery_permille,
+                                            cfg->degraded_permille, g);
+        bands[i].decel_mms2 = a < 1 ? 1 : a;
+    }
+    return n;
+}
+
+void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
+               int32_t age_ms, int32_t service, rg_curve_set *out)
+{
+    rg_band bands[RG_MAX_BANDS] = {{0, 0}, {0, 0}, {0, 0}};   /* (whole: EVA merges the band index) */
+    const int64_t v = speed_cms, e = cfg->speed_error_permille;
+    const int64_t v_max = (v * (1000 + e) + 999) / 1000;
+    const int64_t v_min = v * (1000 - e) / 1000;
+    const int64_t obstacle = closing_cms - v_min;       /* the obstacle's own speed towards us */
+    const int64_t g = rg_gradient_accel_mms2(cfg->max_gradient_permille);
+    const int32_t n = conditioned_bands(cfg, track, brake, service, g, bands);
+    const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;
+    int64_t t1, a1, s1, v1, t2, s2, v2, s3, t3, ebi, ebd_dist, ebd_time, ebd, lead, sbi;
+    /* phase 1: report age + one cycle + traction cut-off, under full traction and downhill */
+    t1 = (int64_t)age_ms + cfg->period_ms + cfg->traction_cutoff_ms;
+    a1 = (int64_t)cfg->max_accel_mms2 + g;
+    s1 = rg_run_dm(v_max, a1, t1);
+    v1 = rg_speed_after_cms(v_max, a1, t1);
+    /* phase 2: rest of the brake's equivalent build-up, coasting downhill */
+    t2 = buildup - cfg->traction_cutoff_ms;
+    if (t2 < 0) t2 = 0;
+    s2 = rg_run_dm(v1, g, t2);
+    v2 = rg_speed_after_cms(v1, g, t2);
+    /* phase 3: guaranteed braking to standstill */
+    rg_stop_dm_ms(v2, bands, n, &s3, &t3);
+    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3);
+    rg_stop_dm_ms(v, bands, n, &ebd_dist, &ebd_time);
+    ebd = ebd_dist + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, ebd_time);
+    lead = v_max + (obstacle > 0 ? obstacle : 0);
+    sbi = ebi + rg_run_dm(lead, 0, cfg->service_buildup_ms);
+    out->ebd_dm = rg_cap_dm(ebd);
+    out->ebi_dm = rg_cap_dm(ebi);
+    out->sbi_dm = rg_cap_dm(sbi);
+    out->warning_dm = rg_cap_dm(sbi + rg_run_dm(lead, 0, cfg->warning_ms));
 }
 
 /*@ assigns \nothing;
@@ -297,12 +596,34 @@ int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32
     return 0;
 }
 
-/*@ assigns \nothing;
-    ensures \result == (present != 0 && distance_dm <= alpha2_dm ? 2 : 0);
+/*@ requires \valid(warn);
+    assigns *warn;
+    ensures 0 <= \result <= 2 && (*warn == 0 || *warn == 1);
+    ensures present != 0 && distance_dm <= ebi_dm ==> \result == 2;
+    ensures present != 0 && distance_dm <= sbi_dm ==> \result >= 1;
+    ensures held != 0 && present != 0 && distance_dm <= sbi_dm ==> \result == 2;
+    ensures present == 0 ==> \result == 0 && *warn == 0;
+    ensures 0 <= ebi_dm <= sbi_dm <= warning_dm ==> (*warn == 1 <==> (present != 0 && distance_dm <= warning_dm));
+    ensures ebi_dm <= sbi_dm && present != 0 && distance_dm > sbi_dm ==> \result == 0;
+    ensures held == 0 && present != 0 && distance_dm > ebi_dm ==> \result <= 1;
 */
-int32_t rg_envelope_demand(int32_t present, int32_t distance_dm, int32_t alpha2_dm)
+int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
+                              int32_t held, int32_t *warn)
 {
-    return present && distance_dm <= alpha2_dm ? RG_EMERGENCY : RG_MAINTAIN;
+    if (!present) {
+        *warn = 0;
+        return RG_MAINTAIN;
+    }
+    if (distance_dm <= ebi_dm || (held && distance_dm <= sbi_dm)) {
+        *warn = 1;
+        return RG_EMERGENCY;
+    }
+    if (distance_dm <= sbi_dm) {
+        *warn = 1;
+        return RG_SERVICE;
+    }
+    *warn = distance_dm <= warning_dm;
+    return RG_MAINTAIN;
 }
 
 /*@ assigns \nothing;
@@ -318,18 +639,32 @@ int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand)
     return d;
 }
 
-/*@ requires \valid(final_demand);
-    assigns *final_demand;
+/*@ requires confirm >= 1;
+    requires \valid(calm_out) && \valid(final_demand) && \separated(calm_out, final_demand);
+    assigns *calm_out, *final_demand;
     ensures \result == 0 || \result == 1;
-    ensures latched != 0 && speed_cms > 0 ==> \result == 1 && *final_demand == 2;
-    ensures demand == 2 && speed_cms > 0 ==> \result == 1;
-    ensures demand <= 2 ==> *final_demand >= demand;
-    ensures speed_cms == 0 ==> \result == 0 && *final_demand == demand;
+    ensures 0 <= demand <= 2 ==> *final_demand >= demand;
+    ensures demand == 2 && speed_cms > 0 ==> \result == 1 && *calm_out == 0;
+    ensures speed_cms <= 0 ==> \result == 0 && *calm_out == 0 && *final_demand == demand;
+    ensures latched != 0 && speed_cms > 0 && revocable == 0 ==> \result == 1;
+    ensures latched != 0 && speed_cms > 0 && calm + 1 < confirm ==> \result == 1;
     ensures *final_demand == (\result == 1 ? 2 : demand);
+    ensures *calm_out < confirm && (revocable != 0 || *calm_out == 0);
+    ensures calm >= 0 ==> *calm_out >= 0;
 */
-int32_t rg_latch(int32_t latched, int32_t demand, int32_t speed_cms, int32_t *final_demand)
+int32_t rg_latch(int32_t latched, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
+                 int32_t *calm_out, int32_t *final_demand)
 {
     int32_t held = (latched || demand == RG_EMERGENCY) && speed_cms > 0;
+    int32_t count = 0;
+    if (held && revocable && demand != RG_EMERGENCY) {
+        if (calm >= confirm - 1) {
+            held = 0;            /* calm + 1 >= confirm: released (calm + 1 is never formed) */
+        } else {
+            count = calm + 1;
+        }
+    }
+    *calm_out = count;
     *final_demand = held ? RG_EMERGENCY : demand;
     return held;
 }
@@ -354,6 +689,7 @@ static void safe_stop_fallback(rg_state *s, rg_outputs *out)
     s->mode = RG_SAFE_STOP;
     s->latched = 1;
     s->healthy = 0;
+    s->calm = 0;
     out->demand = RG_EMERGENCY;
     out->reasons = RG_R_SAFE_STOP | RG_R_SYSTEM_ERROR | RG_R_LATCH;
     out->distance_dm = RG_NO_DISTANCE;
@@ -364,6 +700,24 @@ static void safe_stop_fallback(rg_state *s, rg_outputs *out)
     out->observation = 0;
     out->cycle = s->cycle;
     out->error_cycles = s->error_cycles;
+    out->warning = 1;
+}
+
+/* Zone of the voted obstacle for the table: alpha2 = EBI and alpha1 = the service curve's
+ * EBI, both under normal conditions (alpha1 at least alpha2); `ebi` is the EBI under the
+ * reported conditions, which is alpha2 when they are normal. */
+static int32_t table_zone(const rg_config *cfg, int32_t distance, int32_t speed, int32_t adverse, int32_t toward,
+                          int32_t age, int32_t ebi)
+{
+    rg_curve_set c;
+    int32_t alpha1, alpha2 = ebi;
+    if (adverse) {
+        rg_curves(cfg, speed, 0, 0, toward, age, 0, &c);
+        alpha2 = c.ebi_dm;
+    }
+    rg_curves(cfg, speed, 0, 0, toward, age, 1, &c);
+    alpha1 = c.ebi_dm > alpha2 ? c.ebi_dm : alpha2;
+    return rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
 }
 
 void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inputs *in, int64_t tick, rg_outputs *out)
@@ -371,15 +725,18 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     const int32_t modules = cfg->modules == 1 ? 1 : 3;
     const int32_t channels = 2 * modules;
     const int64_t timeout_ticks = (int64_t)cfg->timeout_cycles * cfg->period_ms;
+    /* the age limit: timeout_ticks itself for an accepted configuration */
+    const int64_t age_limit = timeout_ticks < RG_MAX_AGE_MS ? timeout_ticks : RG_MAX_AGE_MS;
     const uint32_t all_seen = (1u << channels) - 1u;
     int32_t statuses[RG_MAX_CHANNELS];
     int32_t ms[RG_MAX_MODULES], md[RG_MAX_MODULES], mf[RG_MAX_MODULES], disagree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
-    int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error;
-    int32_t speed, track, brake, train_ok, alpha1, alpha2, env, z, obs, error, overrun_limit, healthy, mode;
-    int32_t node, table_demand, reasons, error_demand, demand, latched, final_demand, error_cycles;
+    int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
+    int32_t sys_status, distance, sys_error, present, toward, warn;
+    int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
+    int32_t node, table_demand, reasons, error_demand, demand, latched, calm, final_demand, error_cycles;
     int32_t i, m;
+    rg_curve_set curve;
 
     if (s->node < 0 || (uint32_t)s->node >= t->nodes) {
         safe_stop_fallback(s, out);
@@ -395,6 +752,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
             seen |= 1u << i;
             if (statuses[i] == RG_PRESENT) {
                 const rg_report *r = &in->reports[i];
+                int32_t a;
                 /* rg_effective_status's contract gives this (WP proves it); EVA, which
                  * cannot relate the status to the fields, takes the ranges from it */
                 /*@ assert present_in_range: 0 <= r->distance_dm <= 60000 && -15000 <= r->closing_cms <= 15000
@@ -402,6 +760,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
                 if (!have_closing || r->closing_cms > closing) closing = r->closing_cms;
                 have_closing = 1;
                 if (r->obstacle > obstacle) obstacle = r->obstacle;
+                a = rg_age_ms(r->tick, tick, age_limit);
+                if (a > age) age = a;
             }
         }
     }
@@ -427,7 +787,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         sys_error = mf[0] || ms[0] == RG_DEGRADED;
     }
 
-    /* 4. envelope at the current speed; an invalid train state is read to the safe side */
+    /* 4. braking curves at the measured speed, under the reported conditions; an invalid
+     *    train state is read to the safe side */
     speed = in->train.speed_cms;
     track = in->train.track;
     brake = in->train.brake;
@@ -439,25 +800,27 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         track = 1;
         brake = 1;
     }
-    alpha1 = rg_braking_distance_dm(speed, cfg->service_decel_mms2, cfg->reaction_ms);
-    alpha2 = rg_braking_distance_dm(speed, cfg->emergency_decel_mms2, cfg->reaction_ms);
-    env = rg_envelope_demand(distance != RG_NO_DISTANCE, distance, alpha2);
+    present = distance != RG_NO_DISTANCE;
+    toward = have_closing ? closing : speed;
+    rg_curves(cfg, speed, track, brake, toward, age, 0, &curve);
+    env = rg_supervision_demand(present, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, s->latched, &warn);
 
-    /* 5. observation */
-    if (distance != RG_NO_DISTANCE) {
-        z = rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
+    /* 5. observation (the table's zones under normal conditions) */
+    if (present) {
+        z = table_zone(cfg, distance, speed, track || brake, toward, age, curve.ebi_dm);
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
     }
     if (t->model == RG_MODEL_M1) {
         obs = z;
     } else {
-        int32_t spd = speed_class(have_closing ? closing : speed, cfg->fast_closing_cms);
+        int32_t spd = speed_class(toward, cfg->fast_closing_cms);
         obs = (((z * 3 + spd) * 3 + obstacle) * 2 + track) * 2 + brake;
     }
 
-    /* modes */
+    /* modes; a dispute is a system error with every channel fresh and the train input valid */
     error = sys_error || !train_ok;
+    dispute = sys_error && train_ok && !stale;
     overrun_limit = in->overruns >= cfg->max_overruns;
     healthy = (error || stale || perceptor || overrun_limit) ? 0 : inc(s->healthy);
     mode = s->mode;
@@ -473,36 +836,44 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         mode = RG_NORMAL;
     }
 
-    /* 6. table */
+    /* 6. table (held during any system error: it reads only pictures the voter confirms) */
     if (mode == RG_INIT) {
         node = (int32_t)t->start;
         table_demand = RG_MAINTAIN;
     } else {
-        node = (int32_t)next_node(t, (uint32_t)s->node, (uint32_t)obs);
+        node = (error && mode != RG_SAFE_STOP) ? s->node : (int32_t)next_node(t, (uint32_t)s->node, (uint32_t)obs);
         table_demand = t->bytes[t->action_offset + (uint32_t)node];
     }
 
-    /* 7. demands, only ever upwards, then the latch */
+    /* 7. demands, only ever upwards, then the latch; INIT brakes without latching */
     reasons = 0;
     error_demand = RG_MAINTAIN;
     if (table_demand) reasons |= RG_R_TABLE;
-    if (env) reasons |= RG_R_ENVELOPE;
+    if (env == RG_EMERGENCY) reasons |= RG_R_ENVELOPE;
+    else if (env == RG_SERVICE) reasons |= RG_R_SBI;
     if (stale) reasons |= RG_R_STALE;
     if (error) {
-        error_demand = cfg->safe_reaction;
         reasons |= RG_R_SYSTEM_ERROR | (train_ok ? 0 : RG_R_TRAIN_INPUT);
-    }
-    if (mode == RG_INIT) {
-        error_demand = RG_EMERGENCY;
-        reasons |= RG_R_INIT;
+        if (dispute) {
+            reasons |= RG_R_DISPUTE;
+            warn = 1;
+        } else if (mode != RG_INIT) {   /* in INIT the emergency below covers it, unlatched */
+            error_demand = cfg->safe_reaction;
+        }
     }
     if (mode == RG_SAFE_STOP) {
         error_demand = RG_EMERGENCY;
         reasons |= RG_R_SAFE_STOP | (perceptor ? RG_R_PERCEPTOR : 0) | (overrun_limit ? RG_R_DEADLINE : 0);
     }
     demand = rg_combine(table_demand, env, error_demand);
-    latched = rg_latch(s->latched, demand, speed, &final_demand);
-    if (latched && s->latched) reasons |= RG_R_LATCH;
+    latched = rg_latch(s->latched, s->calm, demand, speed, cfg->emergency_release == RG_RELEASE_REVOCABLE,
+                       cfg->release_confirm_cycles, &calm, &final_demand);
+    if (latched && s->latched && demand != RG_EMERGENCY) reasons |= RG_R_LATCH;
+    if (mode == RG_INIT) {
+        final_demand = RG_EMERGENCY;
+        reasons |= RG_R_INIT;
+    }
+    if (warn) reasons |= RG_R_WARNING;
 
     error_cycles = (error || stale) ? inc(s->error_cycles) : s->error_cycles;
     s->mode = mode;
@@ -513,6 +884,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->healthy = healthy;
     s->cycle = inc(s->cycle);
     s->error_cycles = error_cycles;
+    s->calm = calm;
 
     out->demand = final_demand;
     out->reasons = reasons;
@@ -524,4 +896,5 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     out->observation = obs;
     out->cycle = s->cycle;
     out->error_cycles = error_cycles;
+    out->warning = warn;
 }

@@ -1,8 +1,9 @@
 /* railguard online core in C99: the same cycle as monitor/core (Python), bit for bit.
  *
- * freshness -> 2oo2 per module -> 3oo3 across modules -> envelope -> observation ->
- * table -> demand (only ever upwards) -> emergency latch. Integers only (DESIGN.md
- * section 4): distance in dm, speed in cm/s, deceleration in mm/s^2, time in ms ticks.
+ * freshness -> 2oo2 per module -> 3oo3 across modules -> braking curves (EBI, SBI,
+ * warning) -> observation -> table -> demand (only ever upwards) -> emergency latch and
+ * release. Integers only (DESIGN.md section 4): distance in dm, speed in cm/s,
+ * deceleration in mm/s^2, time in ms ticks; 64-bit intermediates in the curves.
  * No allocation, no I/O, no clock, no floating point. docs/core.md documents the cycle,
  * the modes and the reason bits; docs/fmu.md the C side.
  */
@@ -42,6 +43,9 @@
 #define RG_R_PERCEPTOR (1 << 7)
 #define RG_R_DEADLINE (1 << 8)
 #define RG_R_TRAIN_INPUT (1 << 9)
+#define RG_R_SBI (1 << 10)
+#define RG_R_WARNING (1 << 11)
+#define RG_R_DISPUTE (1 << 12)
 
 /* documented input ranges */
 #define RG_MAX_DISTANCE_DM 60000
@@ -49,6 +53,14 @@
 #define RG_MAX_SPEED_CMS 12000
 #define RG_NO_DISTANCE 65535
 #define RG_MAX_COUNT 2147483647
+
+/* the braking declaration (monitor/core/config.py, braking.py) */
+#define RG_RELEASE_AT_STANDSTILL 0
+#define RG_RELEASE_REVOCABLE 1
+#define RG_MIN_GUARANTEED_DECEL_MMS2 100
+#define RG_CURVE_CAP_DM 1000000
+#define RG_MAX_BANDS 3
+#define RG_MAX_AGE_MS 60000  /* timeout_cycles x period_ms of an accepted configuration */
 
 /* models */
 #define RG_MODEL_M1 1
@@ -81,9 +93,27 @@ typedef struct {
     int32_t period_ms;
     int32_t timeout_cycles;
     int32_t persistence_cycles;
+    /* the train's braking declaration (guaranteed values) */
+    int32_t emergency_decel_mms2;   /* speed band 1 (from 0) */
+    int32_t emergency_band2_cms;    /* band 2 starts at this speed (0: no band 2) */
+    int32_t emergency_band2_mms2;
+    int32_t emergency_band3_cms;    /* band 3 starts at this speed (0: no band 3) */
+    int32_t emergency_band3_mms2;
     int32_t service_decel_mms2;
-    int32_t emergency_decel_mms2;
-    int32_t reaction_ms;
+    int32_t emergency_buildup_ms;
+    int32_t service_buildup_ms;
+    int32_t traction_cutoff_ms;
+    int32_t max_accel_mms2;
+    int32_t speed_error_permille;
+    int32_t slippery_permille;
+    int32_t degraded_permille;
+    int32_t max_gradient_permille;
+    int32_t standstill_margin_dm;
+    /* supervision and response */
+    int32_t warning_ms;
+    int32_t emergency_release;      /* RG_RELEASE_REVOCABLE or RG_RELEASE_AT_STANDSTILL */
+    int32_t release_confirm_cycles;
+    /* Model 2 observation and voting */
     int32_t warning_margin_dm;
     int32_t fast_closing_cms;
     int32_t safe_reaction;
@@ -116,6 +146,7 @@ typedef struct {
     int32_t healthy;
     int32_t cycle;
     int32_t error_cycles;
+    int32_t calm;         /* cycles in a row without an emergency cause while one is held */
 } rg_state;
 
 typedef struct {
@@ -129,7 +160,22 @@ typedef struct {
     int32_t observation;
     int32_t cycle;
     int32_t error_cycles;
+    int32_t warning;      /* obstacle inside the warning curve, or disputed */
 } rg_outputs;
+
+/* Python's braking.Curves: distances to the obstacle in dm, capped at RG_CURVE_CAP_DM */
+typedef struct {
+    int32_t ebd_dm;
+    int32_t ebi_dm;
+    int32_t sbi_dm;
+    int32_t warning_dm;
+} rg_curve_set;
+
+/* one speed band of a brake: from this speed up, this deceleration */
+typedef struct {
+    int64_t from_cms;
+    int64_t decel_mms2;
+} rg_band;
 
 /* The defaults of monitor/core/config.py. */
 void rg_config_default(rg_config *cfg);
@@ -148,7 +194,14 @@ void rg_initial_state(const rg_table *table, const rg_config *cfg, rg_state *sta
 void rg_step(const rg_config *cfg, const rg_table *table, rg_state *state,
              const rg_inputs *inputs, int64_t tick, rg_outputs *out);
 
-/* The pieces, exposed for tests and for the proofs (issue 7). */
+/* The pieces, exposed for tests and for the proofs (issues 7 and 11). Each mirrors the
+ * Python function of the same name: freshness.py, voter.py, braking.py (curves: the
+ * EBD, EBI, SBI and warning distances at a measured speed; `service` nonzero: the service
+ * brake's, the table's alpha1), envelope.py, config.py (emergency_bands,
+ * gradient_accel_mms2). rg_age_ms is the age of a fresh report (Python: tick - r.tick),
+ * capped at `limit`; rg_latch returns the new latched flag, with the new calm count and
+ * the final demand in its out-parameters; rg_supervision_demand returns the demand, with
+ * the warning in `*warning`. */
 int32_t rg_in_range(int32_t status, int32_t distance_dm, int32_t closing_cms, int32_t obstacle);
 int32_t rg_is_fresh(int64_t received, int64_t now, int64_t timeout_ticks);
 int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_ticks);
@@ -158,10 +211,26 @@ int32_t rg_disagreement(int32_t sa, int32_t sb);
 int32_t rg_distances_disagree(int32_t sa, int32_t da, int32_t sb, int32_t db, int32_t tolerance_dm);
 void rg_vote_3oo3(const int32_t s[3], const int32_t d[3], const int32_t f[3],
                   int32_t *status, int32_t *distance, int32_t *error);
-int32_t rg_braking_distance_dm(int32_t speed_cms, int32_t decel_mms2, int32_t reaction_ms);
+int32_t rg_age_ms(int64_t received, int64_t now, int64_t limit);
+int32_t rg_gradient_accel_mms2(int32_t gradient_permille);
+int32_t rg_emergency_bands(const rg_config *cfg, rg_band bands[RG_MAX_BANDS]);
+int64_t rg_scaled_decel_mms2(int64_t decel_mms2, int64_t factor_permille);
+int64_t rg_effective_decel_mms2(int64_t decel_mms2, int32_t track, int32_t brake, int64_t slippery_permille,
+                                int64_t degraded_permille, int64_t gradient_mms2);
+int64_t rg_run_dm(int64_t speed_cms, int64_t accel_mms2, int64_t time_ms);
+int64_t rg_speed_after_cms(int64_t speed_cms, int64_t accel_mms2, int64_t time_ms);
+void rg_band_stop(int64_t speed_cms, int64_t lo_cms, int64_t hi_cms, int64_t decel_mms2, int64_t *dist_dm,
+                  int64_t *time_ms);
+void rg_stop_dm_ms(int64_t speed_cms, const rg_band *bands, int32_t count, int64_t *dist_dm, int64_t *time_ms);
+int64_t rg_obstacle_run_dm(int64_t obstacle_cms, int64_t time_ms);
+int32_t rg_cap_dm(int64_t x);
+void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
+               int32_t age_ms, int32_t service, rg_curve_set *out);
 int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32_t warning_dm);
-int32_t rg_envelope_demand(int32_t present, int32_t distance_dm, int32_t alpha2_dm);
+int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
+                              int32_t held, int32_t *warning);
 int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand);
-int32_t rg_latch(int32_t latched, int32_t demand, int32_t speed_cms, int32_t *final_demand);
+int32_t rg_latch(int32_t latched, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
+                 int32_t *calm_out, int32_t *final_demand);
 
 #endif

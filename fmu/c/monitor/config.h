@@ -1,5 +1,7 @@
 /* The monitor FMU: the railguard online core (rg_core.c) behind FMI inputs and outputs.
- * The policy table is compiled in (rg_table.h, generated from the table file). */
+ * The policy table is compiled in (rg_table.h, generated from the table file); the
+ * parameters and their start values come from rg_parameters.h (generated from
+ * fmu/variables.py, or from a braking declaration). */
 #ifndef RG_MONITOR_CONFIG_H
 #define RG_MONITOR_CONFIG_H
 
@@ -7,14 +9,16 @@
 
 #include "build_info.h"
 #include "rg_core.h"
+#include "rg_parameters.h"
 
 #define MODEL_IDENTIFIER "railguard_monitor"
 #define FIXED_STEP 0.1   /* the core's cycle period, 100 ms */
 
 typedef struct {
-    /* parameters (names as in monitor/core/config.py) */
-    int32_t timeout_cycles, persistence_cycles, service_decel_mms2, emergency_decel_mms2, reaction_ms,
-        warning_margin_dm, fast_closing_cms, safe_reaction, recovery_cycles, topology, distance_tolerance_dm;
+    /* parameters: the fields of rg_config named in RG_PARAMETERS (as in monitor/core/config.py),
+     * and the topology code (3: 3oo3, 2: one 2oo2 module) */
+    rg_config params;
+    int32_t topology;
     /* inputs, as the FMI sees them */
     int32_t status[RG_MAX_CHANNELS], type[RG_MAX_CHANNELS], valid[RG_MAX_CHANNELS];
     double distance[RG_MAX_CHANNELS], closing[RG_MAX_CHANNELS];

@@ -47,24 +47,19 @@ static void set_outputs_start(ModelData *m)
     m->outputs.observation = 0;
     m->outputs.cycle = 0;
     m->outputs.error_cycles = 0;
+    m->outputs.warning = 0;
 }
+
+#define SET_START(name, start) m->params.name = (start);
+#define GET_PARAMETER(name, start) case vr_##name: return m->params.name;
+#define SET_PARAMETER(name, start) case vr_##name: m->params.name = v; break;
 
 void model_set_start_values(ModelData *m)
 {
     int i;
-    rg_config d;
-    rg_config_default(&d);
-    m->timeout_cycles = d.timeout_cycles;
-    m->persistence_cycles = d.persistence_cycles;
-    m->service_decel_mms2 = d.service_decel_mms2;
-    m->emergency_decel_mms2 = d.emergency_decel_mms2;
-    m->reaction_ms = d.reaction_ms;
-    m->warning_margin_dm = d.warning_margin_dm;
-    m->fast_closing_cms = d.fast_closing_cms;
-    m->safe_reaction = d.safe_reaction;
-    m->recovery_cycles = d.recovery_cycles;
-    m->distance_tolerance_dm = d.distance_tolerance_dm;
-    m->topology = 3;
+    rg_config_default(&m->params);
+    RG_PARAMETERS(SET_START)
+    m->topology = RG_START_TOPOLOGY;
     for (i = 0; i < RG_MAX_CHANNELS; i++) {
         m->status[i] = 0;
         m->type[i] = 0;
@@ -102,22 +97,12 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     static const char expected[] = RG_TABLE_SHA256;
     rg_config *c = &m->config;
     int i;
-    rg_config_default(c);
     if (m->topology != 3 && m->topology != 2) {
         snprintf(msg, len, "topology = %ld: must be 3 (3oo3) or 2 (a single 2oo2 module)", (long)m->topology);
         return RG_ERROR;
     }
+    *c = m->params;
     c->modules = m->topology == 3 ? 3 : 1;
-    c->timeout_cycles = m->timeout_cycles;
-    c->persistence_cycles = m->persistence_cycles;
-    c->service_decel_mms2 = m->service_decel_mms2;
-    c->emergency_decel_mms2 = m->emergency_decel_mms2;
-    c->reaction_ms = m->reaction_ms;
-    c->warning_margin_dm = m->warning_margin_dm;
-    c->fast_closing_cms = m->fast_closing_cms;
-    c->safe_reaction = m->safe_reaction;
-    c->recovery_cycles = m->recovery_cycles;
-    c->distance_tolerance_dm = m->distance_tolerance_dm;
     if (rg_config_check(c, msg, len) != 0) return RG_ERROR;
     if (rg_table_check(&m->table, c, msg, len) != 0) return RG_ERROR;
     /* the compiled-in hash must be the one the table's own trailer holds */
@@ -186,17 +171,8 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     switch (vr) {
     case vr_train_track_condition: return m->track;
     case vr_train_brake_status: return m->brake;
-    case vr_timeout_cycles: return m->timeout_cycles;
-    case vr_persistence_cycles: return m->persistence_cycles;
-    case vr_service_decel_mms2: return m->service_decel_mms2;
-    case vr_emergency_decel_mms2: return m->emergency_decel_mms2;
-    case vr_reaction_ms: return m->reaction_ms;
-    case vr_warning_margin_dm: return m->warning_margin_dm;
-    case vr_fast_closing_cms: return m->fast_closing_cms;
-    case vr_safe_reaction: return m->safe_reaction;
-    case vr_recovery_cycles: return m->recovery_cycles;
+    RG_PARAMETERS(GET_PARAMETER)
     case vr_topology: return m->topology;
-    case vr_distance_tolerance_dm: return m->distance_tolerance_dm;
     case vr_brake_demand: return m->outputs.demand;
     case vr_reasons: return m->outputs.reasons;
     case vr_voted_distance_dm: return m->outputs.distance_dm;
@@ -217,6 +193,7 @@ int model_get_boolean(const ModelData *m, uint32_t vr)
     int field = 0, ch = channel_of(vr, &field);
     if (ch >= 0) return m->valid[ch] != 0;
     if (vr == vr_system_error) return m->outputs.system_error != 0;
+    if (vr == vr_warning) return m->outputs.warning != 0;
     return 0;
 }
 
@@ -250,17 +227,8 @@ void model_set_integer(ModelData *m, uint32_t vr, int32_t v)
     switch (vr) {
     case vr_train_track_condition: m->track = v; break;
     case vr_train_brake_status: m->brake = v; break;
-    case vr_timeout_cycles: m->timeout_cycles = v; break;
-    case vr_persistence_cycles: m->persistence_cycles = v; break;
-    case vr_service_decel_mms2: m->service_decel_mms2 = v; break;
-    case vr_emergency_decel_mms2: m->emergency_decel_mms2 = v; break;
-    case vr_reaction_ms: m->reaction_ms = v; break;
-    case vr_warning_margin_dm: m->warning_margin_dm = v; break;
-    case vr_fast_closing_cms: m->fast_closing_cms = v; break;
-    case vr_safe_reaction: m->safe_reaction = v; break;
-    case vr_recovery_cycles: m->recovery_cycles = v; break;
+    RG_PARAMETERS(SET_PARAMETER)
     case vr_topology: m->topology = v; break;
-    case vr_distance_tolerance_dm: m->distance_tolerance_dm = v; break;
     default: break;
     }
 }

@@ -2,8 +2,11 @@
  *
  * EVA runs rg_step RG_EVA_STEPS times in a row for
  *   - every configuration rg_config_check accepts: each field over its whole accepted range
- *     (the two cross-field conditions, persistence <= timeout and service <= emergency
- *     deceleration, are not imposed, so more configurations are covered than accepted);
+ *     (a band's deceleration 1..20000: with the band off any value is accepted, and then
+ *     never read). The conditions that link fields (timeout_cycles x period_ms <= 60 s,
+ *     band 3 above band 2, service at most every emergency band, the worst-case
+ *     deceleration on the steepest downhill >= 100 mm/s^2) are not imposed, so more
+ *     configurations are covered than accepted;
  *   - the shipped policy table, bytes and layout from rg_table.h, which verification/proof.py
  *     generates at proof time with fmu/generate.py (the same header the FMU is built with);
  *   - the initial state, or any state at all (every byte of rg_state);
@@ -23,16 +26,31 @@
 static void any_config(rg_config *c)
 {
     c->period_ms = Frama_C_interval(1, 10000);
-    c->timeout_cycles = Frama_C_interval(1, INT32_MAX);
-    c->persistence_cycles = Frama_C_interval(1, INT32_MAX);
-    c->service_decel_mms2 = Frama_C_interval(1, 20000);
+    c->timeout_cycles = Frama_C_interval(1, 60000);
+    c->persistence_cycles = Frama_C_interval(1, 1000);
     c->emergency_decel_mms2 = Frama_C_interval(1, 20000);
-    c->reaction_ms = Frama_C_interval(0, 60000);
+    c->emergency_band2_cms = Frama_C_interval(0, RG_MAX_SPEED_CMS);
+    c->emergency_band2_mms2 = Frama_C_interval(1, 20000);
+    c->emergency_band3_cms = Frama_C_interval(0, RG_MAX_SPEED_CMS);
+    c->emergency_band3_mms2 = Frama_C_interval(1, 20000);
+    c->service_decel_mms2 = Frama_C_interval(1, 20000);
+    c->emergency_buildup_ms = Frama_C_interval(0, 30000);
+    c->service_buildup_ms = Frama_C_interval(0, 30000);
+    c->traction_cutoff_ms = Frama_C_interval(0, 30000);
+    c->max_accel_mms2 = Frama_C_interval(0, 5000);
+    c->speed_error_permille = Frama_C_interval(0, 500);
+    c->slippery_permille = Frama_C_interval(1, 1000);
+    c->degraded_permille = Frama_C_interval(1, 1000);
+    c->max_gradient_permille = Frama_C_interval(0, 60);
+    c->standstill_margin_dm = Frama_C_interval(0, 10000);
+    c->warning_ms = Frama_C_interval(0, 60000);
+    c->emergency_release = Frama_C_interval(RG_RELEASE_AT_STANDSTILL, RG_RELEASE_REVOCABLE);
+    c->release_confirm_cycles = Frama_C_interval(1, 1000);
     c->warning_margin_dm = Frama_C_interval(0, 60000);
     c->fast_closing_cms = Frama_C_interval(1, 15000);
     c->safe_reaction = Frama_C_interval(RG_SERVICE, RG_EMERGENCY);
-    c->recovery_cycles = Frama_C_interval(1, INT32_MAX);
-    c->max_overruns = Frama_C_interval(1, INT32_MAX);
+    c->recovery_cycles = Frama_C_interval(1, 100000);
+    c->max_overruns = Frama_C_interval(1, 1000);
     c->distance_tolerance_dm = Frama_C_interval(0, 60000);
 }
 
