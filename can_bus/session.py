@@ -117,7 +117,46 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
     else:
         speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
         true_d = None
-    return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs])
+    return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs],
+                    speed_distance=speed_distance(runner, player))
+
+
+def speed_distance(runner: MonitorRunner, player: Optional[Player]):
+    """The run's speed-distance picture: the monitor's curves for the scenario's obstacle
+    (the nearest at the end of the run) and the train's trajectory once it entered the
+    section; without an obstacle, the trajectory against the monitor's record alone."""
+    from .plot import SpeedDistance
+
+    recs = runner.records
+    cfg = runner.setup.config
+    if player is None:
+        speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
+        return SpeedDistance(cfg, None, travelled([r.tick / 1000 for r in recs], speed), speed,
+                             [r.demand for r in recs], [r.warning for r in recs])
+    pairs = [(row, rec) for row, rec in zip(player.trace, recs) if row.speed_mps > 0 or row.t_s > 0]
+    near = player.obstacle_distance()
+    spec = near[1] if near is not None else None
+    tr = player.scenario.train
+    with_obstacle = spec is not None and any(row.distance_m is not None for row, _ in pairs)
+    if with_obstacle:
+        pairs = [(row, rec) for row, rec in pairs if row.distance_m is not None]
+    speed = [row.speed_mps for row, _ in pairs]
+    return SpeedDistance(
+        cfg, [row.distance_m for row, _ in pairs] if with_obstacle else None,
+        travelled([row.t_s for row, _ in pairs], speed), speed,
+        [rec.demand for _, rec in pairs], [rec.warning for _, rec in pairs],
+        obstacle_speed_mps=spec.speed_mps if with_obstacle else 0.0, track=int(tr.track == "slippery"),
+        brake=int(tr.brake == "degraded"), visible_m=player.scenario.sensors.range_m if with_obstacle else None)
+
+
+def travelled(t_s: list, speed_mps: list) -> list:
+    """Distance run since the first sample (trapezoidal rule over the samples)."""
+    out, x = [], 0.0
+    for i, v in enumerate(speed_mps):
+        if i:
+            x += 0.5 * (v + speed_mps[i - 1]) * (t_s[i] - t_s[i - 1])
+        out.append(x)
+    return out
 
 
 def status_line(rec, player: Optional[Player]) -> str:

@@ -3,22 +3,30 @@ loop over FMPy's slave classes.
 
 The train FMU is stepped every `step_s` (10 ms by default); the monitor FMU every 100 ms,
 its fixed cycle (a multi-rate master). At a monitor instant the master first hands the
-train's sensor and speed outputs to the monitor and steps it, then hands its brake demand
-to the train for the next 100 ms (Gauss-Seidel: the demand of the cycle at t acts from t,
-as a monitor whose cycle ends well inside its period would). The hot loop calls the FMI
-functions FMPy bound from the binaries, with value-reference arrays prepared once.
+train's sensor and speed outputs to the monitor and steps it. The brake demand reaches
+the train `demand_delay_cycles` monitor cycles later (default 1: the demand of the cycle
+at t acts from t + 100 ms, as it does on CAN, where the train reads the BrakeDemand frame
+the monitor sent in the previous period); 0 gives the Gauss-Seidel loop where it acts at
+once. The hot loop calls the FMI functions FMPy bound from the binaries, with
+value-reference arrays prepared once.
+
+`Loop` keeps both FMUs open for many runs (a grid); the monitor may also be
+`ReferenceMonitor`, the Python twin of the monitor FMU (fmu.reference).
 """
 from __future__ import annotations
 
 import csv
+import shutil
 import time
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .driver import FmuCallError, Port, close_slave, do_step_function, initialize, open_slave, vr_of
-from .variables import CHANNELS, MONITOR, TRAIN
+from .variables import CHANNELS, MONITOR, MONITOR_OUTPUTS, TRAIN
 
 MONITOR_PERIOD_S = 0.1
+DEMAND_DELAY_CYCLES = 1
 
 
 class CosimError(RuntimeError):
@@ -27,7 +35,7 @@ class CosimError(RuntimeError):
 
 @dataclass
 class CosimResult:
-    outcome: str
+    outcome: str          # collision, struck_at_standstill, stopped, running, no_obstacle
     margin_m: float | None
     steps: int
     monitor_cycles: int
@@ -37,39 +45,51 @@ class CosimResult:
     columns: list
     first_brake_s: float | None
     max_demand: int
+    stop_margin_m: float | None = None    # distance to the obstacle when the train first stood
+    impact_speed: float = 0.0             # our speed at the contact (0: none, or we stood)
+    train_params: dict = field(default_factory=dict)
+    monitor_params: dict = field(default_factory=dict)
+    demand_delay_cycles: int = DEMAND_DELAY_CYCLES
 
     @property
     def realtime_factor(self) -> float:
         return self.simulated_s / self.wall_s if self.wall_s > 0 else float("inf")
 
+    @property
+    def collision(self) -> bool:
+        """Contact while our train moved: what the supervision must prevent."""
+        return self.outcome == "collision"
 
-def run(monitor_fmu: str | Path, train_fmu: str | Path, train_params: dict, monitor_params: dict,
-        duration_s: float, step_s: float = 0.01, record: bool = True) -> CosimResult:
+
+def run(monitor_fmu, train_fmu: str | Path, train_params: dict, monitor_params: dict,
+        duration_s: float, step_s: float = 0.01, record: bool = True, *,
+        demand_delay_cycles: int = DEMAND_DELAY_CYCLES, until_standstill: bool = False) -> CosimResult:
     """Co-simulate and return the trace; raises CosimError if an FMU refuses a call. The
-    monitor FMU may be FMI 2.0 or 3.0 (read from its model description)."""
-    from fmpy.fmi1 import FMICallException
+    monitor may be an FMU path (FMI 2.0 or 3.0, read from its model description) or a
+    ReferenceMonitor."""
+    _check(step_s, demand_delay_cycles)
+    with Loop(monitor_fmu, train_fmu) as loop:
+        return loop.run(train_params, monitor_params, duration_s, step_s, record,
+                        demand_delay_cycles=demand_delay_cycles, until_standstill=until_standstill)
 
+
+def run_scenario(scen, monitor_fmu, train_fmu: str | Path, step_s: float = 0.01,
+                 demand_delay_cycles: int | None = None, record: bool = True) -> CosimResult:
+    """A fmu.scenario.CosimScenario: its parameters, duration and demand delay (unless
+    `demand_delay_cycles` overrides it, as the CLI's --demand-delay does)."""
+    delay = scen.demand_delay_cycles if demand_delay_cycles is None else demand_delay_cycles
+    return run(monitor_fmu, train_fmu, scen.train, scen.monitor, scen.duration_s, step_s, record,
+               demand_delay_cycles=delay)
+
+
+def _check(step_s: float, delay: int) -> int:
+    """The train steps per monitor cycle; CosimError if the step or the delay cannot be run."""
     ratio = round(MONITOR_PERIOD_S / step_s)
     if ratio < 1 or abs(ratio * step_s - MONITOR_PERIOD_S) > 1e-9:
         raise CosimError(f"step {step_s} s must divide the monitor's 0.1 s period")
-    opened = []
-    try:
-        try:
-            train = open_slave(train_fmu, "train")
-            opened.append(train)
-            monitor = open_slave(monitor_fmu, "monitor")
-            opened.append(monitor)
-            initialize(train[0], 2, TRAIN, train_params)
-            initialize(monitor[0], monitor[1], MONITOR, monitor_params)
-        except FMICallException as exc:
-            raise CosimError(f"initialisation refused: {exc}") from None
-        try:
-            return _loop(train[0], monitor[0], monitor[1], train_params, duration_s, step_s, ratio, record)
-        except FmuCallError as exc:
-            raise CosimError(str(exc)) from None
-    finally:
-        for slave, _, unzip in opened:
-            close_slave(slave, unzip)
+    if isinstance(delay, bool) or not isinstance(delay, int) or not 0 <= delay <= 50:
+        raise CosimError(f"demand delay {delay!r}: must be 0..50 monitor cycles")
+    return ratio
 
 
 # the signals handed from the train to the monitor, per type, in matching order
@@ -77,77 +97,225 @@ _LINK_REAL = [f"ch{i}.{f}" for i in range(1, CHANNELS + 1) for f in ("distance",
 _LINK_INT = ([f"ch{i}.{f}" for i in range(1, CHANNELS + 1) for f in ("status", "type")]
              + ["train.track_condition", "train.brake_status"])
 _LINK_BOOL = [f"ch{i}.valid" for i in range(1, CHANNELS + 1)]
-TRAIN_TRACE_REAL = ["train.speed", "position", "acceleration", "true_distance"]
+TRAIN_TRACE_REAL = ["true_speed", "train.speed", "position", "acceleration", "true_distance", "brake_decel"]
 TRAIN_TRACE_INT = ["brake_level"]
-MONITOR_TRACE = ["brake_demand", "reasons", "voted_distance_dm", "node", "mode", "module_flags", "observation",
-                 "cycle", "error_cycles"]
+_OUTPUT_NAMES = [v.name for v in MONITOR_OUTPUTS]
+MONITOR_TRACE = ["brake_demand", "reasons", "voted_distance_dm", "node", "mode", "module_flags", "observation", "cycle",
+                 "error_cycles", "warning"]      # the Integer outputs, then the one Boolean
 
 
-def _loop(train, monitor, mfmi: int, train_params: dict, duration_s: float, step_s: float, ratio: int,
-          record: bool) -> CosimResult:
-    t_vr = lambda names: [vr_of(TRAIN, n) for n in names]  # noqa: E731
-    m_vr = lambda names: [vr_of(MONITOR, n) for n in names]  # noqa: E731
-    links = [(Port(train, 2, kind, t_vr(names), "get"), Port(monitor, mfmi, kind, m_vr(names), "set"))
-             for kind, names in (("Real", _LINK_REAL), ("Integer", _LINK_INT), ("Boolean", _LINK_BOOL))]
-    m_out = Port(monitor, mfmi, "Integer", m_vr(MONITOR_TRACE), "get")
-    t_in = Port(train, 2, "Integer", t_vr(["brake_demand"]), "set")
-    t_real = Port(train, 2, "Real", t_vr(TRAIN_TRACE_REAL), "get")
-    t_int = Port(train, 2, "Integer", t_vr(TRAIN_TRACE_INT), "get")
-    t_collided = Port(train, 2, "Boolean", t_vr(["collided"]), "get")
-    do_train = do_step_function(train, 2)
-    do_monitor = do_step_function(monitor, mfmi)
-    n_steps = int(round(duration_s / step_s))
-    m_steps = 0
-    train_rows = []           # per train step: the train's Real and Integer outputs
-    monitor_rows = []         # per monitor cycle: the monitor's outputs
-    first_brake = None
-    max_demand = 0
-    demand_index = MONITOR_TRACE.index("brake_demand")
-    real_values, int_values = t_real.values, t_int.values
-    get_real, get_int, append = t_real.call, t_int.call, train_rows.append
-    t0 = time.perf_counter()
-    for k in range(n_steps):
-        t = k * step_s
-        if k % ratio == 0:
-            for src, dst in links:
-                src.call()
-                dst.copy_from(src)
-                dst.call()
-            if do_monitor(t, MONITOR_PERIOD_S) > 1:
-                raise CosimError(f"monitor doStep at t = {t:.2f} s failed")
-            m_steps += 1
-            m_out.call()
-            outs = m_out.values[:]
-            monitor_rows.append(outs)
-            demand = outs[demand_index]
-            t_in.values[0] = demand
-            t_in.call()
-            if demand > max_demand:
-                max_demand = demand
-            if demand and first_brake is None:
-                first_brake = round(t, 6)
-        if do_train(t, step_s) > 1:
-            raise CosimError(f"train doStep at t = {t:.2f} s failed")
-        if record:
-            get_real()
-            get_int()
-            append(real_values[:] + int_values[:])
-    wall = time.perf_counter() - t0
-    t_real.call()
-    t_collided.call()
-    speed, _, _, distance = t_real.values
-    present = bool(train_params.get("obstacle.present", True))
-    if t_collided.values[0]:
-        outcome, margin = "collision", 0.0
-    elif not present:
-        outcome, margin = "no_obstacle", None
-    elif speed == 0.0:
-        outcome, margin = "stopped", float(distance)
+class FmuMonitor:
+    """The monitor FMU, opened once; `start` (re)initialises it with parameters."""
+
+    def __init__(self, path: str | Path):
+        self.slave, self.fmi, self.unzip = open_slave(path, "monitor")
+        m_vr = lambda names: [vr_of(MONITOR, n) for n in names]  # noqa: E731
+        self.inputs = [Port(self.slave, self.fmi, kind, m_vr(names), "set")
+                       for kind, names in (("Real", _LINK_REAL), ("Integer", _LINK_INT), ("Boolean", _LINK_BOOL))]
+        self.int_out = Port(self.slave, self.fmi, "Integer", m_vr(MONITOR_TRACE[:-1]), "get")
+        self.warn_out = Port(self.slave, self.fmi, "Boolean", m_vr(MONITOR_TRACE[-1:]), "get")
+        self._step = do_step_function(self.slave, self.fmi)
+        self.started = False
+
+    def start(self, params: dict) -> None:
+        if self.started:
+            self.slave.reset()
+        initialize(self.slave, self.fmi, MONITOR, params)
+        self.started = True
+
+    def cycle(self, t: float, train_ports) -> list:
+        """Hand the train's link outputs over, run one cycle, return MONITOR_TRACE values."""
+        for dst, src in zip(self.inputs, train_ports):
+            dst.copy_from(src)
+            dst.call()
+        if self._step(t, MONITOR_PERIOD_S) > 1:
+            raise CosimError(f"monitor doStep at t = {t:.2f} s failed")
+        self.int_out.call()
+        self.warn_out.call()
+        return self.int_out.values[:] + [int(bool(self.warn_out.values[0]))]
+
+    def close(self) -> None:
+        _close(self.slave, self.unzip, self.started)
+
+
+def _close(slave, unzip, started: bool) -> None:
+    """Free an FMU; terminate it first only if it was initialised (FMI forbids it before)."""
+    if started:
+        close_slave(slave, unzip)
     else:
-        outcome, margin = "running", float(distance)
-    columns = ["time_s", *TRAIN_TRACE_REAL, *TRAIN_TRACE_INT, *MONITOR_TRACE]
-    rows = [(round((k + 1) * step_s, 6), *train_rows[k], *monitor_rows[k // ratio]) for k in range(len(train_rows))]
-    return CosimResult(outcome, margin, n_steps, m_steps, n_steps * step_s, wall, rows, columns, first_brake, max_demand)
+        try:
+            slave.freeInstance()
+        finally:
+            shutil.rmtree(unzip, ignore_errors=True)
+
+
+class ReferenceMonitor:
+    """fmu.reference.MonitorReference (the Python twin of the monitor FMU) behind the same
+    interface as FmuMonitor: the same loop without the monitor FMU."""
+
+    def __init__(self, table_bytes: bytes):
+        self.table = table_bytes
+        self.ref = None
+        self._fields = [_OUTPUT_NAMES.index(n) for n in MONITOR_TRACE]
+
+    def start(self, params: dict) -> None:
+        from .reference import MonitorReference
+
+        try:
+            self.ref = MonitorReference(self.table, params)
+        except (ValueError, TypeError) as exc:         # ConfigurationError, unknown names
+            raise CosimError(f"initialisation refused: {exc}") from None
+
+    def cycle(self, t: float, train_ports) -> list:
+        from .reference import ChannelInput, StepInput
+
+        real, ints, bools = (p.values for p in train_ports)
+        chans = tuple(ChannelInput(ints[2 * i], real[2 * i], real[2 * i + 1], ints[2 * i + 1], bool(bools[i]))
+                      for i in range(CHANNELS))
+        out = self.ref.step(StepInput(chans, real[2 * CHANNELS], ints[2 * CHANNELS], ints[2 * CHANNELS + 1]))[0]
+        return [int(out[i]) for i in self._fields]
+
+    def close(self) -> None:
+        self.ref = None
+
+
+class Loop:
+    """The train FMU and a monitor, opened once and run as often as wanted (each run
+    re-initialises both: fmiReset on the FMUs)."""
+
+    def __init__(self, monitor, train_fmu: str | Path):
+        from fmpy.fmi1 import FMICallException
+
+        self.monitor = None
+        self.train = None
+        try:
+            self.train = open_slave(train_fmu, "train")
+            self.monitor = FmuMonitor(monitor) if isinstance(monitor, (str, Path)) else monitor
+        except FMICallException as exc:
+            self.close()
+            raise CosimError(f"cannot open an FMU: {exc}") from None
+        slave = self.train[0]
+        t_vr = lambda names: [vr_of(TRAIN, n) for n in names]  # noqa: E731
+        self.links = [Port(slave, 2, kind, t_vr(names), "get")
+                      for kind, names in (("Real", _LINK_REAL), ("Integer", _LINK_INT), ("Boolean", _LINK_BOOL))]
+        self.t_in = Port(slave, 2, "Integer", t_vr(["brake_demand"]), "set")
+        self.t_real = Port(slave, 2, "Real", t_vr(TRAIN_TRACE_REAL), "get")
+        self.t_int = Port(slave, 2, "Integer", t_vr(TRAIN_TRACE_INT), "get")
+        self.t_end = Port(slave, 2, "Real", t_vr(["impact_speed"]), "get")
+        self.t_collided = Port(slave, 2, "Boolean", t_vr(["collided"]), "get")
+        self.do_train = do_step_function(slave, 2)
+        self.runs = 0
+
+    def __enter__(self) -> "Loop":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.train is not None:
+            _close(self.train[0], self.train[2], self.runs > 0)
+            self.train = None
+        if self.monitor is not None:
+            self.monitor.close()
+            self.monitor = None
+
+    def start(self, train_params: dict, monitor_params: dict) -> None:
+        from fmpy.fmi1 import FMICallException
+
+        try:
+            if self.runs:
+                self.train[0].reset()
+            initialize(self.train[0], 2, TRAIN, train_params)
+            self.monitor.start(monitor_params)
+        except FMICallException as exc:
+            raise CosimError(f"initialisation refused: {exc}") from None
+        except KeyError as exc:            # a parameter the FMU does not have
+            raise CosimError(f"initialisation refused: {exc.args[0]}") from None
+        self.runs += 1
+
+    def run(self, train_params: dict, monitor_params: dict, duration_s: float, step_s: float = 0.01,
+            record: bool = True, *, demand_delay_cycles: int = DEMAND_DELAY_CYCLES,
+            until_standstill: bool = False) -> CosimResult:
+        """One run from t = 0. With `until_standstill` it ends when the train first stands
+        after moving (or collides): enough to know the stop margin."""
+        ratio = _check(step_s, demand_delay_cycles)
+        self.start(train_params, monitor_params)
+        try:
+            res = self._loop(duration_s, step_s, ratio, record, demand_delay_cycles, until_standstill)
+        except FmuCallError as exc:
+            raise CosimError(str(exc)) from None
+        res.train_params, res.monitor_params = dict(train_params), dict(monitor_params)
+        res.demand_delay_cycles = demand_delay_cycles
+        return res
+
+    def _loop(self, duration_s: float, step_s: float, ratio: int, record: bool, delay: int,
+              until_standstill: bool) -> CosimResult:
+        links, monitor, t_in = self.links, self.monitor, self.t_in
+        do_train = self.do_train
+        n_steps = int(round(duration_s / step_s))
+        pending: deque = deque()      # demands computed but not yet delivered to the train
+        train_rows, monitor_rows, delivered = [], [], []
+        first_brake = stop_margin = None
+        max_demand = 0
+        real_values, int_values = self.t_real.values, self.t_int.values
+        get_real, get_int = self.t_real.call, self.t_int.call
+        speed_i, dist_i = TRAIN_TRACE_REAL.index("true_speed"), TRAIN_TRACE_REAL.index("true_distance")
+        moved = False
+        k = 0
+        t0 = time.perf_counter()
+        for k in range(n_steps):
+            t = k * step_s
+            if k % ratio == 0:
+                for src in links:
+                    src.call()
+                outs = monitor.cycle(t, links)
+                monitor_rows.append(outs)
+                demand = outs[0]
+                if not pending:
+                    pending.extend([demand] * delay)   # before the first demand arrives: the first one
+                pending.append(demand)
+                t_in.values[0] = pending.popleft()
+                t_in.call()
+                delivered.append(t_in.values[0])
+                if demand > max_demand:
+                    max_demand = demand
+                if demand and first_brake is None:
+                    first_brake = round(t, 6)
+            if do_train(t, step_s) > 1:
+                raise CosimError(f"train doStep at t = {t:.2f} s failed")
+            get_real()
+            if record:
+                get_int()
+                train_rows.append(real_values[:] + int_values[:])
+            speed = real_values[speed_i]
+            if speed > 0.0:
+                moved = True
+            elif moved and stop_margin is None:
+                stop_margin = float(real_values[dist_i])
+                if until_standstill:
+                    break
+        steps = k + 1 if n_steps else 0
+        wall = time.perf_counter() - t0
+        self.t_real.call()
+        self.t_end.call()
+        self.t_collided.call()
+        speed, distance = self.t_real.values[speed_i], self.t_real.values[dist_i]
+        impact = float(self.t_end.values[0])
+        if self.t_collided.values[0]:
+            outcome, margin = ("collision" if impact > 0.0 else "struck_at_standstill"), 0.0
+            stop_margin = None if impact > 0.0 else stop_margin
+        elif distance >= 1e8:
+            outcome, margin = "no_obstacle", None
+        elif speed == 0.0:
+            outcome, margin = "stopped", float(distance)
+        else:
+            outcome, margin = "running", float(distance)
+        columns = ["time_s", *TRAIN_TRACE_REAL, *TRAIN_TRACE_INT, "demand_in", *MONITOR_TRACE]
+        rows = [(round((i + 1) * step_s, 6), *train_rows[i], delivered[i // ratio], *monitor_rows[i // ratio])
+                for i in range(len(train_rows))]
+        return CosimResult(outcome, margin, steps, len(monitor_rows), steps * step_s, wall, rows, columns,
+                           first_brake, max_demand, stop_margin, impact)
 
 
 def write_csv(result: CosimResult, path: Path) -> Path:
@@ -159,6 +327,28 @@ def write_csv(result: CosimResult, path: Path) -> Path:
     return path
 
 
+def speed_distance(result: CosimResult):
+    """The run's speed-distance picture (can_bus.plot.SpeedDistance): the curves for its
+    obstacle under the monitor's configuration and the train's reported conditions."""
+    from can_bus.plot import SpeedDistance
+
+    from .reference import config_from_parameters
+
+    c = {name: i for i, name in enumerate(result.columns)}
+    tp = result.train_params
+    obstacle = bool(tp.get("obstacle.present", True))
+    rows = [r for r in result.rows if r[c["true_distance"]] < 1e8] if obstacle else result.rows
+    return SpeedDistance(
+        config=config_from_parameters(result.monitor_params),
+        distance_m=[r[c["true_distance"]] for r in rows] if obstacle else None,
+        position_m=[r[c["position"]] for r in rows],
+        speed_mps=[r[c["true_speed"]] for r in rows],
+        demand=[r[c["brake_demand"]] for r in rows], warning=[bool(r[c["warning"]]) for r in rows],
+        obstacle_speed_mps=float(tp.get("obstacle.speed", 0.0)),
+        track=int(tp.get("track_condition", 0)), brake=int(tp.get("brake_status", 0)),
+        visible_m=float(tp.get("sensor.range", 400.0)) if obstacle else None)
+
+
 def plot(result: CosimResult, path: Path, title: str) -> Path:
     from can_bus.plot import plot_run
 
@@ -166,5 +356,6 @@ def plot(result: CosimResult, path: Path, title: str) -> Path:
     t = [r[0] for r in result.rows]
     dist = [r[c["true_distance"]] if r[c["true_distance"]] < 1e8 else None for r in result.rows]
     voted = [None if r[c["voted_distance_dm"]] == 65535 else r[c["voted_distance_dm"]] / 10 for r in result.rows]
-    return plot_run(path, title, t, [r[c["train.speed"]] for r in result.rows], dist, voted,
-                    [r[c["brake_demand"]] for r in result.rows], [r[c["mode"]] for r in result.rows])
+    return plot_run(path, title, t, [r[c["true_speed"]] for r in result.rows], dist, voted,
+                    [r[c["brake_demand"]] for r in result.rows], [r[c["mode"]] for r in result.rows],
+                    speed_distance=speed_distance(result))

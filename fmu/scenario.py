@@ -4,20 +4,28 @@ parameters, the policy table and the duration (several ship in fmu/scenarios).
     description = "static obstacle 600 m ahead at 20 m/s"
     duration_s = 60.0
     table = "m1"                 # shipped m1 / m2, or a table file path
+    demand_delay_cycles = 1      # the demand reaches the train this many monitor cycles late
     [train]                      # train FMU parameters; sections become dotted names
     initial_speed = 20.0
     [train.obstacle]
     position = 600.0             # -> "obstacle.position"
     [monitor]                    # monitor FMU parameters (names of monitor/core/config.py)
     topology = 3
+    [braking]                    # the train's braking declaration (monitor/declaration.py, SI)
+    emergency_decel = 2.4        # ... every key; it sets the monitor's parameters
 
-Every name is checked against the FMUs' variables; an unknown one is refused.
+Every name is checked against the FMUs' variables; an unknown one is refused. A braking
+declaration is checked as `railguard ... --braking FILE` checks it, and its values become
+monitor parameters (a [monitor] key may not set the same one again).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
+
+from monitor.core.config import Config
+from monitor.declaration import DeclarationError, apply, fields
 
 from .variables import MONITOR, TRAIN
 
@@ -44,6 +52,8 @@ class CosimScenario:
     table: str = "m1"
     train: dict = field(default_factory=dict)
     monitor: dict = field(default_factory=dict)
+    demand_delay_cycles: int = 1
+    braking: dict | None = None      # the declaration as written (SI), if the scenario has one
 
 
 def _flatten(prefix: str, table: dict) -> dict:
@@ -84,7 +94,7 @@ def parse(text: str, name: str) -> CosimScenario:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise CosimScenarioError(f"{name}: not valid TOML: {exc}") from None
-    known = {"description", "duration_s", "table", "train", "monitor"}
+    known = {"description", "duration_s", "table", "demand_delay_cycles", "train", "monitor", "braking"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise CosimScenarioError(f"{name}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
@@ -94,9 +104,35 @@ def parse(text: str, name: str) -> CosimScenario:
     table = data.get("table", "m1")
     if not isinstance(table, str):
         raise CosimScenarioError(f"{name}: table = {table!r}: must be m1, m2 or a table file path")
+    delay = data.get("demand_delay_cycles", 1)
+    if isinstance(delay, bool) or not isinstance(delay, int) or not 0 <= delay <= 50:
+        raise CosimScenarioError(f"{name}: demand_delay_cycles = {delay!r}: must be a whole number 0..50")
     train = _check_params("train", _flatten("", data.get("train", {})), _TRAIN_PARAMS)
     monitor = _check_params("monitor", _flatten("", data.get("monitor", {})), _MONITOR_PARAMS)
-    return CosimScenario(name, str(data.get("description", "")), float(duration), table, train, monitor)
+    scen = CosimScenario(name, str(data.get("description", "")), float(duration), table, train, monitor, delay)
+    braking = data.get("braking")
+    if braking is None:
+        return scen
+    if not isinstance(braking, dict):
+        raise CosimScenarioError(f"{name}: [braking] must be a table of the declaration's keys")
+    return with_braking(scen, braking, f"{name}: [braking]")
+
+
+def with_braking(scen: CosimScenario, values: dict, where: str) -> CosimScenario:
+    """`scen` with a braking declaration (SI keys of monitor.declaration) as the monitor's
+    parameters; it replaces a declaration the scenario had, and refuses a [monitor] key
+    that sets one of its values too."""
+    own = set(fields(scen.braking, where)) if scen.braking else set()
+    monitor = {k: v for k, v in scen.monitor.items() if k not in own}
+    try:
+        apply(Config(), values, where)          # the values checked together
+        declared = fields(values, where)
+    except DeclarationError as exc:
+        raise CosimScenarioError(str(exc)) from None
+    both = sorted(set(declared) & set(monitor))
+    if both:
+        raise CosimScenarioError(f"{where}: {', '.join(both)} set by both [braking] and [monitor]; keep one")
+    return replace(scen, monitor={**monitor, **declared}, braking=dict(values))
 
 
 def shipped() -> list[str]:

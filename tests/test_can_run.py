@@ -502,3 +502,22 @@ def test_extended_id_frame_is_not_a_standard_report():
     assert runner.frames_received == 1
     assert runner.receiver.reports[0] is None, "an extended-ID frame was latched as channel 0's report"
     assert runner.receiver.accepted == 0 and runner.receiver.rejected_total == 1
+
+
+def test_run_plot_speed_distance_follows_the_run(runs):
+    """`railguard run`'s speed-distance diagram: the train's trajectory from the section
+    entry, against the distance to the scenario's obstacle, for the monitor's curves under
+    the scenario's conditions; without an obstacle, against the distance run, no curves."""
+    res = runs("m2", "static-obstacle")
+    sd = session.speed_distance(res.runner, res.player)
+    assert sd.config == res.runner.setup.config and sd.visible_m == 1000.0 and sd.obstacle_speed_mps == 0.0
+    assert len(sd.distance_m) == len(sd.speed_mps) == len(sd.demand) == len(sd.warning) == len(sd.position_m)
+    assert sd.speed_mps[0] == 30.0 and min(sd.speed_mps) == 0.0
+    assert all(b <= a for a, b in zip(sd.distance_m, sd.distance_m[1:]))            # a static obstacle comes nearer
+    assert sd.distance_m[0] == pytest.approx(1200.0 - 3.0, abs=0.01)                  # one period after the entry
+    assert sd.distance_m[-1] == pytest.approx(res.summary["margin_m"], abs=0.01)
+    assert max(sd.demand) >= 1 and not (sd.track or sd.brake)
+    clear = runs("m2", "no-obstacle")
+    sd = session.speed_distance(clear.runner, clear.player)
+    assert sd.distance_m is None and sd.visible_m is None
+    assert sd.position_m[-1] == pytest.approx(30.0 * (len(sd.speed_mps) - 1) * 0.1, rel=1e-9)

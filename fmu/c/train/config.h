@@ -37,11 +37,19 @@ typedef struct {
     double gradient;        /* per mille, positive uphill */
     double max_traction;    /* m/s2 */
     double service_decel;   /* m/s2 */
-    double emergency_decel; /* m/s2 */
+    double emergency_decel; /* m/s2, below emergency_band2_speed (or at every speed) */
+    double emergency_band2_speed; /* m/s, 0: no band 2 */
+    double emergency_band2_decel; /* m/s2 from emergency_band2_speed */
+    double emergency_band3_speed; /* m/s, 0: no band 3 */
+    double emergency_band3_decel; /* m/s2 from emergency_band3_speed */
     double brake_delay;     /* s */
     double brake_buildup;   /* s */
+    double traction_cutoff; /* s after a demand; < 0: traction is cut when the brake level applies */
+    double speed_error;     /* reported speed = true speed / (1 + speed_error) */
     int32_t track_condition;
     int32_t brake_status;
+    double slippery_factor; /* brake decelerations x this while track_condition = 1 */
+    double degraded_factor; /* brake decelerations x this while brake_status = 1 */
     int obstacle_present;
     double obstacle_position; /* m at t = 0 */
     double obstacle_speed;    /* m/s */
@@ -61,7 +69,7 @@ typedef struct {
 
     /* ---- outputs ---- */
     TrainChannel ch[TRAIN_CHANNELS];
-    double speed;        /* train.speed, m/s (also the state) */
+    double speed;        /* true_speed, m/s (also the state); train.speed is the reported one */
     int32_t out_track_condition;
     int32_t out_brake_status;
     double position;     /* m (also the state) */
@@ -69,6 +77,7 @@ typedef struct {
     double true_distance; /* m, 1e9 without an obstacle */
     int32_t brake_level; /* level in effect after the dead time */
     int collided;
+    double impact_speed; /* m/s: our speed when the obstacle was reached (0: we stood) */
 
     /* ---- internal state ---- */
     double time;          /* s, = steps * FIXED_STEP */
@@ -76,7 +85,10 @@ typedef struct {
     int phase;            /* TRAIN_WAITING, TRAIN_RUNNING, TRAIN_STOPPED (model.c) */
     int seen_release;     /* brake_demand == 0 has been seen at least once */
     double cruise_speed;  /* m/s */
-    double brake_decel;   /* m/s2, current brake deceleration */
+    double brake_decel;   /* m/s2, current brake deceleration (also the brake_decel output) */
+    double brake_target;  /* m/s2, the target brake_decel had in the previous step */
+    double demand_start;  /* s, when the brake demand last rose from 0 */
+    int32_t last_demand;  /* demand (after the hand-over rule) of the previous step */
     int32_t delay_steps;  /* brake dead time in internal steps */
     int32_t ring_head;    /* index of the newest demand in ring[] */
     unsigned char ring[TRAIN_RING_SIZE]; /* demanded levels, one per internal step */

@@ -1,8 +1,11 @@
 /* railguard train-dynamics FMU: the plant around the monitor.
  *
  * One train on a straight track, longitudinal dynamics with Davis resistance, gradient,
- * traction and brakes with a dead time and a linear build-up; one obstacle (static or
- * moving); six sensor channels with Gaussian noise, misses and injectable faults.
+ * traction (held for a while after a brake demand, if asked) and brakes with a dead time,
+ * a linear build-up, speed bands and adhesion factors; one obstacle (static, moving away
+ * or oncoming); six sensor channels with Gaussian noise, misses and injectable faults.
+ * It is the world the monitor's braking declaration must cover, so it can brake worse
+ * than nominal in every way the declaration allows.
  * Fixed internal step FIXED_STEP (10 ms). Doubles throughout: this is the plant, not the
  * deterministic monitor core. Equations, parameters and faults: docs/train_fmu.md.
  */
@@ -88,11 +91,25 @@ static int demand_level(int32_t d)
     return 2; /* emergency, and anything out of range */
 }
 
-static double level_decel(const ModelData *m, int level)
+/* the brake decelerations actually achieved, under the reported conditions */
+static double condition_factor(const ModelData *m)
+{
+    return (m->track_condition ? m->slippery_factor : 1.0) * (m->brake_status ? m->degraded_factor : 1.0);
+}
+
+static double emergency_at(const ModelData *m, double v)
+{
+    double a = m->emergency_decel;
+    if (m->emergency_band2_speed > 0.0 && v >= m->emergency_band2_speed) a = m->emergency_band2_decel;
+    if (m->emergency_band3_speed > 0.0 && v >= m->emergency_band3_speed) a = m->emergency_band3_decel;
+    return a * condition_factor(m);
+}
+
+static double level_decel(const ModelData *m, int level, double v)
 {
     if (level == 0) return 0.0;
-    if (level == 1) return m->service_decel;
-    return m->emergency_decel;
+    if (level == 1) return m->service_decel * condition_factor(m);
+    return emergency_at(m, v);
 }
 
 static double resistance_acc(const ModelData *m, double v)
@@ -111,17 +128,33 @@ static int fault_active(const ModelData *m, int channel, double t)
            t >= m->fault_start && t < m->fault_end;
 }
 
-/* true distance at the current time; also detects the collision */
-static void update_distance(ModelData *m)
+/* Our speed at the moment the gap closed, in a step that began with gap d0 > 0, speed v
+ * and acceleration a held until t_move (the train stands after that), while the obstacle
+ * moves at u: the first root of d0 - (v - u) s - a s^2 / 2 = 0. 0 if the gap closed only
+ * after the train stood (an oncoming obstacle reached a standing train). */
+static double contact_speed(double d0, double v, double a, double t_move, double u)
+{
+    const double w = v - u;
+    const double disc = w * w + 2.0 * a * d0;
+    double s;
+    if (d0 <= 0.0) return v;
+    if (disc < 0.0 || w + sqrt(disc) <= 0.0) return 0.0;
+    s = 2.0 * d0 / (w + sqrt(disc));
+    if (s > t_move) return 0.0;
+    return (v + a * s > 0.0) ? v + a * s : 0.0;
+}
+
+/* true distance at the current time; also detects the collision (returns 1 on contact) */
+static int update_distance(ModelData *m)
 {
     double obstacle;
     if (!m->obstacle_present) {
         m->true_distance = NO_OBSTACLE_DISTANCE;
-        return;
+        return 0;
     }
     if (m->collided) {
         m->true_distance = 0.0;
-        return;
+        return 0;
     }
     obstacle = m->obstacle_position + m->obstacle_speed * m->time;
     m->true_distance = obstacle - m->position;
@@ -133,7 +166,9 @@ static void update_distance(ModelData *m)
         m->speed = 0.0;
         m->acceleration = 0.0;
         m->true_distance = 0.0;
+        return 1;
     }
+    return 0;
 }
 
 static void update_valid(ModelData *m)
@@ -217,36 +252,66 @@ static void maybe_sample(ModelData *m)
 
 /* ------------------------------------------------------------------ one internal step */
 
-static void internal_step(ModelData *m)
+/* brake deceleration: towards the target of the level in effect at the build-up rate
+ * (full emergency deceleration over brake_buildup); once built, it follows the target
+ * as the speed crosses a band */
+static void update_brake(ModelData *m, int level, int previous_level, double v, double dt)
 {
-    const double dt = FIXED_STEP;
-    const int raw = demand_level(m->brake_demand);
-    int demand, level;
-    double target, traction = 0.0, v = m->speed, a, v_new, dx;
-
-    /* demands: ignored while entering the monitored section (hand-over) */
-    if (raw == 0) m->seen_release = 1;
-    if (m->phase == TRAIN_WAITING && raw == 0) m->phase = TRAIN_RUNNING;
-    demand = (m->seen_release || m->time >= HANDOVER_TIME - SAMPLE_EPS) ? raw : 0;
-
-    /* dead time: the level in effect is the demand of delay_steps steps ago */
-    m->ring_head = (m->ring_head + 1) % TRAIN_RING_SIZE;
-    m->ring[m->ring_head] = (unsigned char)demand;
-    level = m->ring[(m->ring_head + TRAIN_RING_SIZE - m->delay_steps) % TRAIN_RING_SIZE];
-    m->brake_level = level;
-
-    /* brake build-up and release: linear ramp at emergency_decel / brake_buildup */
-    target = level_decel(m, level);
-    if (m->brake_buildup <= 0.0) {
+    const double target = level_decel(m, level, v);
+    if (m->brake_buildup <= 0.0 || (level == previous_level && m->brake_decel == m->brake_target)) {
         m->brake_decel = target;
     } else {
-        const double ramp = m->emergency_decel / m->brake_buildup * dt;
+        const double ramp = emergency_at(m, v) / m->brake_buildup * dt;
         if (m->brake_decel < target) {
             m->brake_decel = (m->brake_decel + ramp < target) ? m->brake_decel + ramp : target;
         } else if (m->brake_decel > target) {
             m->brake_decel = (m->brake_decel - ramp > target) ? m->brake_decel - ramp : target;
         }
     }
+    m->brake_target = target;
+}
+
+/* traction acceleration: the cruise controller (feed-forward of resistance and gradient
+ * plus a proportional term, in [0, max_traction]) while no brake applies; with
+ * traction_cutoff >= 0, full traction for traction_cutoff after a brake demand (the
+ * demand found the train accelerating), then none until the demand is gone */
+static double traction_acc(const ModelData *m, int demand, int level, double t, double v)
+{
+    double traction;
+    if (m->phase != TRAIN_RUNNING || m->cruise_speed <= 0.0) return 0.0;
+    if (m->traction_cutoff >= 0.0 && demand > 0) {
+        return (t - m->demand_start < m->traction_cutoff - SAMPLE_EPS) ? m->max_traction : 0.0;
+    }
+    if (level != 0) return 0.0;
+    traction = resistance_acc(m, v) + grade_acc(m) + SPEED_GAIN * (m->cruise_speed - v);
+    if (traction < 0.0) traction = 0.0;
+    if (traction > m->max_traction) traction = m->max_traction;
+    return traction;
+}
+
+static void internal_step(ModelData *m)
+{
+    const double dt = FIXED_STEP;
+    const double t = m->time;
+    const int raw = demand_level(m->brake_demand);
+    const int previous_level = m->brake_level;
+    const double d0 = m->true_distance;
+    int demand, level;
+    double traction, v = m->speed, a, v_new, dx, t_move = dt, impact;
+
+    /* demands: ignored while entering the monitored section (hand-over) */
+    if (raw == 0) m->seen_release = 1;
+    if (m->phase == TRAIN_WAITING && raw == 0) m->phase = TRAIN_RUNNING;
+    demand = (m->seen_release || t >= HANDOVER_TIME - SAMPLE_EPS) ? raw : 0;
+    if (demand > 0 && m->last_demand == 0) m->demand_start = t;
+    m->last_demand = demand;
+
+    /* dead time: the level in effect is the demand of delay_steps steps ago */
+    m->ring_head = (m->ring_head + 1) % TRAIN_RING_SIZE;
+    m->ring[m->ring_head] = (unsigned char)demand;
+    level = m->ring[(m->ring_head + TRAIN_RING_SIZE - m->delay_steps) % TRAIN_RING_SIZE];
+    m->brake_level = level;
+    update_brake(m, level, previous_level, v, dt);
 
     m->steps++;
     m->time = (double)m->steps * dt;
@@ -259,21 +324,15 @@ static void internal_step(ModelData *m)
         return;
     }
 
-    /* traction: feed-forward of resistance and gradient plus a proportional term,
-     * limited to [0, max_traction]; cut while a brake level is applied */
-    if (m->phase == TRAIN_RUNNING && level == 0 && m->cruise_speed > 0.0) {
-        traction = resistance_acc(m, v) + grade_acc(m) + SPEED_GAIN * (m->cruise_speed - v);
-        if (traction < 0.0) traction = 0.0;
-        if (traction > m->max_traction) traction = m->max_traction;
-    }
-
+    traction = traction_acc(m, demand, level, t, v);
     if (v > 0.0) {
         a = traction - resistance_acc(m, v) - grade_acc(m) - m->brake_decel;
         v_new = v + a * dt;
         if (v_new <= 0.0) {
             /* stops within the step: integrate up to the standstill only */
             const double t_stop = (a < 0.0) ? v / -a : dt;
-            dx = 0.5 * v * (t_stop < dt ? t_stop : dt);
+            t_move = t_stop < dt ? t_stop : dt;
+            dx = 0.5 * v * t_move;
             v_new = 0.0;
             if (m->phase == TRAIN_RUNNING && (level > 0 || m->brake_decel > 0.0)) {
                 m->phase = TRAIN_STOPPED; /* waits for clearance for the rest of the run */
@@ -293,10 +352,11 @@ static void internal_step(ModelData *m)
         dx = 0.5 * v_new * dt;
     }
 
+    impact = contact_speed(d0, v, a, t_move, m->obstacle_speed);
     m->speed = v_new;
     m->position += dx;
     m->acceleration = a;
-    update_distance(m);
+    if (update_distance(m)) m->impact_speed = impact;
 }
 
 /* ------------------------------------------------------------------ FMI-facing functions */
@@ -313,10 +373,18 @@ void model_set_start_values(ModelData *m)
     m->max_traction = 0.5;
     m->service_decel = 1.0;
     m->emergency_decel = 3.0;
+    m->emergency_band2_speed = 0.0;
+    m->emergency_band2_decel = 0.0;
+    m->emergency_band3_speed = 0.0;
+    m->emergency_band3_decel = 0.0;
     m->brake_delay = 0.2;
     m->brake_buildup = 0.5;
+    m->traction_cutoff = -1.0;
+    m->speed_error = 0.0;
     m->track_condition = 0;
     m->brake_status = 0;
+    m->slippery_factor = 1.0;
+    m->degraded_factor = 1.0;
     m->obstacle_present = 1;
     m->obstacle_position = 500.0;
     m->obstacle_speed = 0.0;
@@ -372,10 +440,35 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     if (m->emergency_decel < m->service_decel)
         FAIL("emergency_decel = %g: must be >= service_decel = %g", m->emergency_decel,
              m->service_decel);
+    if (bad_nonneg(m->emergency_band2_speed))
+        FAIL("emergency_band2_speed = %g: must be finite and >= 0 (0: no band)", m->emergency_band2_speed);
+    if (bad_nonneg(m->emergency_band3_speed))
+        FAIL("emergency_band3_speed = %g: must be finite and >= 0 (0: no band)", m->emergency_band3_speed);
+    if (m->emergency_band3_speed > 0.0 && !(m->emergency_band2_speed > 0.0 &&
+                                             m->emergency_band3_speed > m->emergency_band2_speed))
+        FAIL("emergency_band3_speed = %g: needs band 2 and must be above emergency_band2_speed = %g",
+             m->emergency_band3_speed, m->emergency_band2_speed);
+    if (m->emergency_band2_speed > 0.0 && !(isfinite(m->emergency_band2_decel) &&
+                                             m->emergency_band2_decel >= m->service_decel))
+        FAIL("emergency_band2_decel = %g: must be finite and >= service_decel = %g",
+             m->emergency_band2_decel, m->service_decel);
+    if (m->emergency_band3_speed > 0.0 && !(isfinite(m->emergency_band3_decel) &&
+                                             m->emergency_band3_decel >= m->service_decel))
+        FAIL("emergency_band3_decel = %g: must be finite and >= service_decel = %g",
+             m->emergency_band3_decel, m->service_decel);
     if (bad_nonneg(m->brake_delay))
         FAIL("brake_delay = %g: must be finite and >= 0", m->brake_delay);
     if (bad_nonneg(m->brake_buildup))
         FAIL("brake_buildup = %g: must be finite and >= 0", m->brake_buildup);
+    if (!isfinite(m->traction_cutoff) || m->traction_cutoff > 30.0)
+        FAIL("traction_cutoff = %g: must be finite and <= 30 s (negative: cut when the brakes apply)",
+             m->traction_cutoff);
+    if (!isfinite(m->speed_error) || m->speed_error < 0.0 || m->speed_error > 0.5)
+        FAIL("speed_error = %g: must be in [0, 0.5]", m->speed_error);
+    if (!(m->slippery_factor > 0.0 && m->slippery_factor <= 1.0))
+        FAIL("slippery_factor = %g: must be in (0, 1]", m->slippery_factor);
+    if (!(m->degraded_factor > 0.0 && m->degraded_factor <= 1.0))
+        FAIL("degraded_factor = %g: must be in (0, 1]", m->degraded_factor);
     if (m->track_condition != 0 && m->track_condition != 1)
         FAIL("track_condition = %ld: must be 0 or 1", (long)m->track_condition);
     if (m->brake_status != 0 && m->brake_status != 1)
@@ -410,6 +503,9 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     m->phase = (m->initial_speed > 0.0) ? TRAIN_RUNNING : TRAIN_WAITING;
     m->seen_release = 0;
     m->brake_decel = 0.0;
+    m->brake_target = 0.0;
+    m->demand_start = 0.0;
+    m->last_demand = 0;
     {
         double d = floor(m->brake_delay / FIXED_STEP + 0.5);
         m->delay_steps = (d > TRAIN_MAX_DELAY_STEPS) ? TRAIN_MAX_DELAY_STEPS : (int32_t)d;
@@ -426,6 +522,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     m->acceleration = 0.0;
     m->brake_level = 0;
     m->collided = 0;
+    m->impact_speed = 0.0;
     m->out_track_condition = m->track_condition;
     m->out_brake_status = m->brake_status;
     for (c = 0; c < TRAIN_CHANNELS; c++) {
@@ -434,7 +531,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
         m->ch[c].closing_speed = 0.0;
         m->ch[c].type = 0;
     }
-    update_distance(m);
+    if (update_distance(m)) m->impact_speed = m->initial_speed;
     update_valid(m);
     maybe_sample(m); /* first sample at t = 0 */
     return RG_OK;
@@ -496,8 +593,16 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_max_traction: return m->max_traction;
     case vr_service_decel: return m->service_decel;
     case vr_emergency_decel: return m->emergency_decel;
+    case vr_emergency_band2_speed: return m->emergency_band2_speed;
+    case vr_emergency_band2_decel: return m->emergency_band2_decel;
+    case vr_emergency_band3_speed: return m->emergency_band3_speed;
+    case vr_emergency_band3_decel: return m->emergency_band3_decel;
     case vr_brake_delay: return m->brake_delay;
     case vr_brake_buildup: return m->brake_buildup;
+    case vr_traction_cutoff: return m->traction_cutoff;
+    case vr_speed_error: return m->speed_error;
+    case vr_slippery_factor: return m->slippery_factor;
+    case vr_degraded_factor: return m->degraded_factor;
     case vr_obstacle_position: return m->obstacle_position;
     case vr_obstacle_speed: return m->obstacle_speed;
     case vr_sensor_range: return m->sensor_range;
@@ -506,10 +611,13 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_sensor_period: return m->sensor_period;
     case vr_fault_start: return m->fault_start;
     case vr_fault_end: return m->fault_end;
-    case vr_train_speed: return m->speed;
+    case vr_train_speed: return m->speed / (1.0 + m->speed_error);
+    case vr_true_speed: return m->speed;
     case vr_position: return m->position;
     case vr_acceleration: return m->acceleration;
     case vr_true_distance: return m->true_distance;
+    case vr_brake_decel: return m->brake_decel;
+    case vr_impact_speed: return m->impact_speed;
     default: return 0.0;
     }
 }
@@ -573,8 +681,16 @@ void model_set_real(ModelData *m, uint32_t vr, double v)
     case vr_max_traction: m->max_traction = v; break;
     case vr_service_decel: m->service_decel = v; break;
     case vr_emergency_decel: m->emergency_decel = v; break;
+    case vr_emergency_band2_speed: m->emergency_band2_speed = v; break;
+    case vr_emergency_band2_decel: m->emergency_band2_decel = v; break;
+    case vr_emergency_band3_speed: m->emergency_band3_speed = v; break;
+    case vr_emergency_band3_decel: m->emergency_band3_decel = v; break;
     case vr_brake_delay: m->brake_delay = v; break;
     case vr_brake_buildup: m->brake_buildup = v; break;
+    case vr_traction_cutoff: m->traction_cutoff = v; break;
+    case vr_speed_error: m->speed_error = v; break;
+    case vr_slippery_factor: m->slippery_factor = v; break;
+    case vr_degraded_factor: m->degraded_factor = v; break;
     case vr_obstacle_position: m->obstacle_position = v; break;
     case vr_obstacle_speed: m->obstacle_speed = v; break;
     case vr_sensor_range: m->sensor_range = v; break;

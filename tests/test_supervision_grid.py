@@ -1,0 +1,114 @@
+"""Closed-loop acceptance of the braking curves (issue 11, Deliver 6), in FMPy with the real
+FMUs: the train FMU brakes as badly as the shipped declaration allows (corners included),
+the monitor FMU supervises it, the demand reaches the train one monitor cycle late, and
+the obstacle is first seen where the curves say a brake must start plus one cycle of
+travel. No run may collide; the same grid must collide against the old nominal envelope,
+against a declaration that promises more than the train brakes, and with a train a little
+worse than declared. The results and the figure are in docs/supervision_grid.md."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from fmu import acceptance as acc
+from fmu import cosim
+from monitor.core.braking import curves
+from monitor.core.config import Config
+from monitor.declaration import apply, shipped
+from monitor.tables import read
+
+VALUES = shipped()
+CFG = apply(Config(), VALUES)
+PARAMS = acc.monitor_params(VALUES)
+
+
+@pytest.fixture(scope="module")
+def curves_loop(fmu_dir, train_fmu):
+    """The monitor FMU with a table that never brakes: the supervision curves alone, the
+    floor every table can only raise."""
+    from fmu.build import build_monitor
+
+    path = build_monitor(acc.curves_only_table(read("m1")), 2, fmu_dir, "railguard-monitor-curves-only.fmu")
+    with cosim.Loop(path, train_fmu) as loop:
+        yield loop
+
+
+def hardest_cases(world=None) -> list:
+    """The grid's hardest train (or `world`) at every speed against every obstacle."""
+    return acc.cases(CFG, [world or acc.hardest_world(VALUES)])
+
+
+def test_the_grid_spans_the_declaration_and_its_corners():
+    worlds = acc.grid_worlds(VALUES)
+    assert len(acc.grid_cases(VALUES)) == len(worlds) * 4 * 3 == 2592
+    assert {w.buildup_s for w in worlds} == {VALUES["emergency_buildup_s"]}          # dead + ramp / 2 at the limit
+    assert {(w.dead_s, w.ramp_s) for w in worlds} == {(1.0, 0.0), (0.0, 2.0), (0.5, 1.0)}
+    assert {w.bands for w in worlds} == {((0.0, 2.4), (30.0, 2.2)), ((0.0, 3.0),)}     # guaranteed .. nominal
+    assert {w.gradient for w in worlds} == {-20.0, 0.0, 10.0}
+    assert {w.traction_s for w in worlds} == {0.8, 0.0} and {w.max_traction for w in worlds} == {0.5}
+    assert {w.speed_error for w in worlds} == {0.02, 0.0}
+    assert {(w.track, w.brake) for w in worlds} == {(0, 0), (1, 0), (0, 1)}
+    assert {(w.slippery_factor, w.degraded_factor) for w in worlds} == {(0.7, 0.8)}
+    assert acc.hardest_world(VALUES) in worlds
+
+
+@pytest.mark.parametrize("speed, obstacle", [(10.0, 0.0), (40.0, -10.0)])
+def test_the_obstacle_is_first_seen_one_cycle_before_ebi(speed, obstacle):
+    world = acc.hardest_world(VALUES)
+    case = acc.cases(CFG, [world], [speed], [obstacle])[0]
+    measured = math.ceil(speed / 1.02 * 100)                   # train.speed read in cm/s, rounded up
+    ebi = curves(CFG, measured, 0, 0, round((speed - obstacle) * 100), 0).ebi_dm / 10
+    assert case.visible_m == pytest.approx(ebi + (speed - obstacle) * 0.1, abs=0.11)
+    p = case.train_params()
+    assert p["sensor.range"] == case.visible_m and p["obstacle.speed"] == obstacle
+    assert p["obstacle.position"] > case.visible_m                        # it comes into view while running
+
+
+def test_no_collision_in_the_grid(curves_loop):
+    """2592 runs: every train within the declaration stops before every obstacle."""
+    outcomes, _ = acc.run_cases(curves_loop, PARAMS, acc.grid_cases(VALUES))
+    s = acc.summary(outcomes)
+    bad = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.outcome, o.impact_speed)
+           for o in outcomes if o.outcome != "stopped"]
+    assert s["collisions"] == 0 and not bad, bad[:5]
+    assert s["min_margin_m"] > 0
+    assert all(o.first_brake_s is not None and o.first_brake_s >= acc.APPROACH_S - 0.11 for o in outcomes)
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_the_shipped_tables_keep_the_hardest_trains_safe(table, monitor_fmus, train_fmu):
+    """The tables only add braking: with m1 or m2 in the loop, the guaranteed-deceleration
+    half of the grid at the declared build-up stays free of collisions too."""
+    worlds = [w for w in acc.grid_worlds(VALUES) if w.bands[0][1] == 2.4 and w.traction_s > 0]
+    with cosim.Loop(monitor_fmus[(table, 2)], train_fmu) as loop:
+        outcomes, _ = acc.run_cases(loop, PARAMS, acc.cases(CFG, worlds))
+    assert acc.summary(outcomes)["collisions"] == 0
+
+
+def test_the_grid_collides_against_the_old_nominal_envelope(curves_loop):
+    """The envelope before issue 11 (3 m/s^2, 0.5 s, nothing else) lets every one of the
+    hardest trains hit the obstacle."""
+    outcomes, _ = acc.run_cases(curves_loop, acc.monitor_params(acc.nominal_envelope()), hardest_cases())
+    assert all(o.collision for o in outcomes)
+    assert max(o.impact_speed for o in outcomes) > 10
+
+
+def test_the_grid_collides_when_the_declaration_promises_more_than_the_train_brakes(curves_loop):
+    """Declared 3.0 m/s^2 for a train that brakes at the guaranteed 2.4 / 2.2."""
+    promised = acc.monitor_params({**VALUES, "emergency_decel": acc.NOMINAL_DECEL})
+    outcomes, _ = acc.run_cases(curves_loop, promised, hardest_cases())
+    assert sum(o.collision for o in outcomes) >= 6
+
+
+@pytest.mark.parametrize("worse", [{"factor": 0.9}, {"dead_s": 1.75}])
+def test_a_train_a_little_worse_than_declared_collides(curves_loop, worse):
+    """10 % less deceleration, or 0.75 s more dead time, than declared: collisions."""
+    hard = acc.hardest_world(VALUES)
+    if "factor" in worse:
+        world = replace(hard, bands=tuple((s, a * worse["factor"]) for s, a in hard.bands))
+    else:
+        world = replace(hard, dead_s=worse["dead_s"])
+    outcomes, _ = acc.run_cases(curves_loop, PARAMS, hardest_cases(world))
+    assert sum(o.collision for o in outcomes) >= 10
