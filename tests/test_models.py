@@ -465,6 +465,34 @@ def test_model2_corrected_reward_answers_risk_with_braking(m2):
     assert worst_maintain == sorted(worst_maintain, reverse=True)
 
 
+def test_model2_corrected_reward_has_increasing_differences_in_risk():
+    """Issue 11: the gain of braking harder never shrinks as the risk category rises, so a
+    higher category (adverse conditions add to rho) never makes a weaker response better now.
+    Eq. 10 as printed lacks this (high risk prefers nominal, critical emergency)."""
+    for rows, increasing in ((model2.CORRECTED_REWARD, True), (model2.CORRECTED_REWARD[::-1], False)):
+        gains = [[r[a2] - r[a] for r in rows] for a, a2 in ((0, 1), (1, 2), (0, 2))]
+        assert all(g == sorted(g) for g in gains) is increasing
+    paper = [[m2_build(reward="paper").R[i] for i, s in enumerate(model2.state_tuples())
+              if risk_category(risk_score(*s)) == c][0] for c in (1, 2, 3, 4)]
+    assert [r[EMERGENCY] - r[NOMINAL] for r in paper] != sorted(r[EMERGENCY] - r[NOMINAL] for r in paper)
+
+
+def test_model2_fully_observed_optimum_never_brakes_less_under_adverse_conditions(m2):
+    """The model itself has no term that makes braking less worth it under slippery track or
+    degraded brakes: with the state known, the optimal action never falls when they turn adverse."""
+    model, _ = m2
+    V = np.zeros(144)
+    for _ in range(2000):
+        Q = model.R.T + model.discount * model.T @ V      # (A, S)
+        V = Q.max(axis=0)
+    best = Q.argmax(axis=0)
+    index = {s: i for i, s in enumerate(model2.state_tuples())}
+    for (d, r, o, k, b), i in index.items():
+        for k2, b2 in itertools.product(range(k, 2), range(b, 2)):
+            assert best[index[(d, r, o, k2, b2)]] >= best[i], (model.states[i], k2, b2)
+    assert len(set(best.tolist())) == 3
+
+
 def test_model2_unknown_reward_variant_is_a_model_error(tmp_path):
     with pytest.raises(ModelError, match="bogus"):
         m2_build(reward="bogus")
@@ -472,11 +500,30 @@ def test_model2_unknown_reward_variant_is_a_model_error(tmp_path):
         load("m2", write_toml(tmp_path, 'reward = "bogus"\n'))
 
 
-def test_model2_start_belief_is_far_normal_track_normal_brakes(m2):
+def test_model2_start_belief_is_far_with_every_track_and_brake_combination(m2):
+    """Issue 11: the obstacle starts far, type and speed from the priors, and each of the four
+    (track, brake) combinations weighs a quarter, so the solved value weighs adverse conditions."""
     model, _ = m2
-    for i, s in enumerate(model2.state_tuples()):
-        if model.b0[i] > 0:
-            assert s[DIST] == 0 and s[TRACK] == 0 and s[BRAKE] == 0
+    p = model2.Model2Params()
+    assert p.start_conditions == "any"
+    b = model.b0.reshape(model2.DIMS)
+    assert b[1:].sum() == 0.0
+    for k, br in itertools.product(range(2), range(2)):
+        assert np.allclose(b[0, :, :, k, br], np.outer(p.speed_prior, p.obstacle_prior) / 4, atol=1e-15)
+
+
+def test_model2_normal_start_conditions_give_the_belief_before_issue_11():
+    b = m2_build(start_conditions="normal").b0.reshape(model2.DIMS)
+    p = model2.Model2Params()
+    assert np.allclose(b[0, :, :, 0, 0], np.outer(p.speed_prior, p.obstacle_prior), atol=1e-15)
+    assert b.sum() == pytest.approx(b[0, :, :, 0, 0].sum())
+
+
+def test_model2_unknown_start_conditions_are_a_model_error(tmp_path):
+    with pytest.raises(ModelError, match="start_conditions"):
+        m2_build(start_conditions="wet")
+    with pytest.raises(ModelError, match="wet"):
+        load("m2", write_toml(tmp_path, 'start_conditions = "wet"\n'))
 
 
 # ------------------------------------------------------------------ risk functions

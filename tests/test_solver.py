@@ -9,9 +9,13 @@ import pytest
 from conftest import independent_values
 from monitor.core import table as table_format
 from monitor.offline import pipeline
-from monitor.offline.controller import Controller, compile_controller, evaluate, minimise, reachable
+from monitor.offline.controller import (
+    ConditionLayer, Controller, compile_controller, compile_monotone, evaluate, minimise, raise_monotone, reachable,
+)
 from monitor.offline.models import Plan
+from monitor.offline.params import ConfigError
 from monitor.offline.solver import SolverSettings, fast_informed_bound, solve
+from verification.monotone import check as monotone_check
 
 TIGER_VALUE = 19.37  # optimal discounted value of Tiger at the uniform belief (g = 0.95)
 
@@ -283,3 +287,44 @@ def test_model2_small_run_respects_bounds_and_node_budget(m2):
     assert comp.value == pytest.approx(value_at_start(model, comp.controller), abs=1e-9)
     t = table_format.decode(result.table, expect_model="m2")
     assert t.nodes == comp.controller.nodes and len(t.observations) == 144
+
+
+# ------------------------------------------------------------------ monotone in conditions (issue 11)
+
+
+def test_condition_layer_of_model2_observations(m2):
+    """Memory = the newest (track, brake) report; the base part is (distance, speed, type)."""
+    model, plan = m2
+    layer = ConditionLayer.of(model.observations, plan.conditions)
+    assert plan.conditions == (3, 4) and layer.memories == 4 and layer.bases == 36
+    for o, name in enumerate(model.observations):
+        parts = name.split("-")
+        newest = 2 * (parts[3] == "slippery") + (parts[4] == "degraded")
+        assert (layer.step[:, o] == newest).all()
+        same_base = [o2 for o2, n2 in enumerate(model.observations) if n2.split("-")[:3] == parts[:3]]
+        assert len(same_base) == 4 and {layer.base[o2] for o2 in same_base} == {layer.base[o]}
+    # below: (track, brake) componentwise; normal-normal is below everything, nothing is below it but itself
+    assert layer.below[0].all() and layer.below[:, 0].tolist() == [True, False, False, False]
+    assert not layer.below[1, 2] and not layer.below[2, 1] and layer.below[1, 3] and layer.below[2, 3]
+    # raising: each memory demands at least what any memory below it demands
+    raised = raise_monotone(np.array([2, 0, 1, 0, 0, 0, 0, 1]), layer)
+    assert raised.tolist() == [2, 2, 2, 2, 0, 0, 0, 1]
+
+
+def test_model2_small_monotone_run_is_monotone_exact_and_within_budget(m2):
+    model, plan = m2
+    small = replace(plan, settings=replace(plan.settings, max_iterations=3, max_beliefs=20, expand_every=1),
+                    max_nodes=16)
+    result = pipeline.run(model, small)
+    comp = result.compiled
+    assert comp.controller.nodes <= 16
+    assert comp.value == pytest.approx(value_at_start(model, comp.controller), abs=1e-9)
+    assert comp.value <= result.solution.upper_bound + 1e-9
+    t = table_format.decode(result.table, expect_model="m2")
+    assert t.header["solver"]["monotone_in"] == [3, 4]
+    res = monotone_check(t)
+    assert res.monotone, res.describe()
+    # one node per reported (track, brake) combination is the least the layering needs
+    layer = ConditionLayer.of(model.observations, plan.conditions)
+    with pytest.raises(ConfigError, match="at least 4"):
+        compile_monotone(model, result.solution, layer, max_nodes=3)

@@ -318,12 +318,18 @@ def grow(model: POMDP, ctrl: Controller, V: np.ndarray, points: np.ndarray) -> t
     return grown, len(chosen)
 
 
-def visited_beliefs(model: POMDP, ctrl: Controller) -> np.ndarray:
-    """The belief each node is really visited with: its normalised discounted occupancy."""
+def node_beliefs(model: POMDP, ctrl: Controller) -> tuple[np.ndarray, np.ndarray]:
+    """(the belief each node is really visited with: its normalised discounted occupancy,
+    the node's visit mass); rows of nodes never visited are zero."""
     x = occupancy(model, ctrl)
     mass = x.sum(axis=1)
-    used = mass > 1e-6
-    return x[used] / mass[used, None]
+    return x / np.maximum(mass, 1e-300)[:, None], mass
+
+
+def visited_beliefs(model: POMDP, ctrl: Controller) -> np.ndarray:
+    """The beliefs of the nodes that are visited at all."""
+    beliefs, mass = node_beliefs(model, ctrl)
+    return beliefs[mass > 1e-6]
 
 
 def settle(model: POMDP, ctrl: Controller, max_nodes: int) -> tuple[Controller, np.ndarray]:
@@ -374,3 +380,163 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
     value, ctrl, V = best
     say(f"compile: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
     return Compiled(replace(ctrl, beliefs=None), V, value, naive_value, done)
+
+
+# ----------------------------------------------------------------------------- monotone in conditions
+
+@dataclass(frozen=True)
+class ConditionLayer:
+    """Observations split into a base part and reported conditions (Model 2: track, brake),
+    and the memory a layered controller keeps of the conditions: the newest report.
+
+    `base[o]` is the column of o's base part; memory q is a combination of conditions (bit
+    k set: condition k adverse), `step[q, o]` the memory after observing o (o's combination),
+    `below[q, q2]` says every condition adverse in q is adverse in q2 as well.
+    """
+
+    base: np.ndarray    # (Z,) column of the observation's base part, 0..B-1
+    step: np.ndarray    # (Q, Z) memory after the observation
+    below: np.ndarray   # (Q, Q) bool
+
+    @property
+    def memories(self) -> int:
+        return int(self.below.shape[0])
+
+    @property
+    def bases(self) -> int:
+        return int(self.base.max()) + 1
+
+    @staticmethod
+    def of(observations: tuple[str, ...], positions: tuple[int, ...]) -> "ConditionLayer":
+        """From observation names joined with `-`: the components at `positions` are two-level
+        conditions, the level of the first observation being the normal one."""
+        parts = [name.split("-") for name in observations]
+        if any(len({p[i] for p in parts}) != 2 for i in positions):
+            raise ValueError("a condition component must have exactly two levels")
+        bits = 1 << np.arange(len(positions))[::-1]
+        combo = np.array([[p[i] != parts[0][i] for i in positions] for p in parts]) @ bits   # (Z,)
+        keys = ["-".join(x for k, x in enumerate(p) if k not in positions) for p in parts]
+        base = np.unique(keys, return_inverse=True)[1].ravel().astype(np.int64)
+        q = np.arange(1 << len(positions))
+        below = (q[:, None] & ~q[None, :]) == 0
+        return ConditionLayer(base, np.tile(combo.astype(np.int64), (len(q), 1)), below)
+
+
+def reduced_model(model: POMDP, layer: ConditionLayer) -> POMDP:
+    """The model with the conditions unobserved: observation = the base part only."""
+    O = np.zeros((model.shape[1], model.shape[0], layer.bases))
+    np.add.at(O.transpose(2, 0, 1), layer.base, model.O.transpose(2, 0, 1))
+    first = np.unique(layer.base, return_index=True)[1]
+    return POMDP(model.name, model.states, model.actions, tuple(model.observations[o] for o in first), model.T, O,
+                 model.R, model.discount, model.b0, model.params)
+
+
+def layered(base: Controller, layer: ConditionLayer, action: np.ndarray) -> Controller:
+    """Node (m, q) = m * Q + q: base node m moving on the base part of each observation
+    only, and condition memory q. Two runs whose reports differ only by conditions raised on
+    the second are always in (m, q) and (m, q2) with q below q2."""
+    Q = layer.memories
+    nxt = base.next[:, layer.base][:, None, :] * Q + layer.step[None, :, :]      # (M, Q, Z)
+    return Controller(action.astype(np.int64), nxt.reshape(-1, nxt.shape[2]), base.start * Q)
+
+
+def raise_monotone(action: np.ndarray, layer: ConditionLayer) -> np.ndarray:
+    """Each (m, q) demands at least what any (m, q') with q' below q demands."""
+    A = action.reshape(-1, layer.memories)
+    return np.max(np.where(layer.below.T[None, :, :], A[:, None, :], -1), axis=2).ravel()
+
+
+def fixed_edge_q(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndarray) -> np.ndarray:
+    """q[n, a]: at node n's belief, act a now and then follow n's own edges (values V)."""
+    S, A, Z = model.shape
+    q = np.zeros((ctrl.nodes, A))
+    for a in range(A):
+        W = np.einsum("so,nos->ns", model.O[a], V[ctrl.next])    # (N, S'): value after o, weighted
+        q[:, a] = beliefs @ model.R[:, a] + model.discount * np.einsum("ns,ns->n", beliefs @ model.T[a], W)
+    return q
+
+
+def beliefs_or(model: POMDP, ctrl: Controller, fallback: np.ndarray) -> np.ndarray:
+    """node_beliefs, with the `fallback` row for every node never visited."""
+    beliefs, mass = node_beliefs(model, ctrl)
+    return np.where(mass[:, None] > 1e-9, beliefs, fallback)
+
+
+def best_actions(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndarray,
+                 layer: ConditionLayer) -> Controller:
+    """Each node's best action with its edges fixed (ties to the stronger braking), raised to monotone."""
+    q = fixed_edge_q(model, ctrl, V, beliefs)
+    tol = 1e-12 * np.maximum(1.0, np.abs(q).max(axis=1, keepdims=True))
+    pick = np.where(q >= q.max(axis=1, keepdims=True) - tol, np.arange(q.shape[1])[None, :], -1).max(axis=1)
+    return replace(ctrl, action=raise_monotone(pick, layer))
+
+
+def with_best_start(model: POMDP, ctrl: Controller, V: np.ndarray) -> Controller:
+    return replace(ctrl, start=int((V @ model.b0).argmax()))
+
+
+def compile_monotone(model: POMDP, sol: Solution, layer: ConditionLayer, max_nodes: int = 255, rounds: int = 12,
+                     progress: Optional[Callable[[str], None]] = None) -> Compiled:
+    """A controller whose demand never falls when conditions are reported adverse.
+
+    1. compile the base controller on the model with the conditions unobserved;
+    2. layer it: node (m, q) moves like m on the base part and keeps the condition memory q;
+    3. improve the actions, keeping the layering: each (m, q) takes its best action at the
+       belief it is visited with, raised to the largest action of any (m, q') with q' below
+       q; a round is kept only if the exact value at b0 rises; then merge bisimilar nodes.
+
+    The base gets max_nodes // 2 nodes first (merging usually leaves far fewer than
+    base x Q); if the result is still over budget, max_nodes // Q, which always fits.
+    """
+    from .params import ConfigError
+
+    say = progress or (lambda text: None)
+    Q = layer.memories
+    if max_nodes < Q:
+        raise ConfigError(f"max_nodes must be at least {Q} to keep the demand monotone in the conditions, "
+                          f"got {max_nodes}")
+    comp = layered_compile(model, sol, layer, max_nodes // 2, rounds, say)
+    if comp.controller.nodes > max_nodes:
+        say(f"monotone: {comp.controller.nodes} nodes are over the budget of {max_nodes}, base budget lowered")
+        comp = layered_compile(model, sol, layer, max_nodes // Q, rounds, say)   # base x Q <= max_nodes
+    return comp
+
+
+def layered_compile(model: POMDP, sol: Solution, layer: ConditionLayer, base_nodes: int, rounds: int,
+                    say: Callable[[str], None]) -> Compiled:
+    """compile_monotone with a base of at most `base_nodes` nodes."""
+    Q = layer.memories
+    reduced = reduced_model(model, layer)
+    base = compile_controller(reduced, sol, max_nodes=base_nodes, rounds=rounds,
+                              progress=lambda text: say(f"base {text}"))
+    M = base.controller.nodes
+    ctrl = layered(base.controller, layer, np.repeat(base.controller.action, Q))
+    # nodes never visited: the base node's belief, weighted by how likely each state reports q
+    reports_q = (layer.step == np.arange(Q)[:, None]).astype(float) @ model.O[0].T        # (Q, S)
+    fallback = (np.repeat(beliefs_or(reduced, base.controller, np.tile(model.b0, (M, 1))), Q, axis=0)
+                * np.tile(reports_q, (M, 1)))
+    fallback /= np.maximum(fallback.sum(axis=1, keepdims=True), 1e-300)
+    V = evaluate(model, ctrl)
+    ctrl = with_best_start(model, ctrl, V)
+    best = (value_at(model, ctrl, V), ctrl, V)
+    say(f"monotone: layered {M} x {Q} nodes, exact value {best[0]:.4f}")
+    done = 0
+    for done in range(1, rounds + 1):
+        ctrl, V = best[1], best[2]
+        cand = best_actions(model, ctrl, V, beliefs_or(model, ctrl, fallback), layer)
+        if np.array_equal(cand.action, ctrl.action):
+            break
+        cand_V = evaluate(model, cand)
+        cand = with_best_start(model, cand, cand_V)
+        value = value_at(model, cand, cand_V)
+        gained = value > best[0] + 1e-9 * max(1.0, abs(best[0]))
+        say(f"monotone: round {done}, {int((cand.action != ctrl.action).sum())} actions changed, "
+            f"exact value {value:.4f}" + ("" if gained else " (no gain, stop)"))
+        if not gained:
+            break
+        best = (value, cand, cand_V)
+    ctrl = minimise(best[1])
+    V = evaluate(model, ctrl)
+    value = value_at(model, ctrl, V)
+    say(f"monotone: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
+    return Compiled(ctrl, V, value, base.naive_value, base.improvement_rounds + done)

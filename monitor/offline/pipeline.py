@@ -12,7 +12,7 @@ import numpy as np
 from .. import __version__
 from ..core import table as table_format
 from . import pomdp_file
-from .controller import Compiled, compile_controller
+from .controller import Compiled, ConditionLayer, compile_controller, compile_monotone
 from .models import Plan
 from .pomdp import POMDP
 from .solver import Progress, Solution, solve
@@ -80,6 +80,7 @@ def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled) -> dic
         "solver": {
             **asdict(plan.settings),
             "max_nodes": plan.max_nodes,
+            **({"monotone_in": list(plan.conditions)} if plan.conditions else {}),
             "iterations": sol.iterations,
             "stop_reason": sol.stop_reason,
             "alpha_vectors": int(len(sol.alphas)),
@@ -91,7 +92,11 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
         compile_progress: Optional[Callable[[str], None]] = None) -> Result:
     start = time.perf_counter()
     sol = solve(model, plan.settings, progress)
-    comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress)
+    if plan.conditions:
+        layer = ConditionLayer.of(model.observations, plan.conditions)
+        comp = compile_monotone(model, sol, layer, max_nodes=plan.max_nodes, progress=compile_progress)
+    else:
+        comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress)
     ctrl = comp.controller
     data = table_format.encode(table_header(model, plan, sol, comp), ctrl.action.tolist(), ctrl.next.tolist())
     return Result(model, plan, sol, comp, data, time.perf_counter() - start)

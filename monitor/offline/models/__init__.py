@@ -5,7 +5,7 @@ parameters, a `[solver]` table sets solver settings and `max_nodes`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Optional
 
@@ -17,10 +17,13 @@ from . import model1, model2
 
 @dataclass(frozen=True)
 class Plan:
-    """How to solve and compile: solver settings plus the controller's node budget."""
+    """How to solve and compile: solver settings, the controller's node budget, and the
+    observation components (by position in the names) whose adverse levels must never
+    lower the demand (empty: no such constraint)."""
 
     settings: SolverSettings
     max_nodes: int = 255
+    conditions: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -42,7 +45,8 @@ MODELS = {
         "seed 001: 144-state anti-collision POMDP (distance, speed, type, track, brake)",
         model2.Model2Params(),
         model2.build,
-        Plan(SolverSettings(max_beliefs=500, max_iterations=100, expand_every=5, time_budget_s=300.0), max_nodes=255),
+        Plan(SolverSettings(max_beliefs=500, max_iterations=100, expand_every=5, time_budget_s=300.0), max_nodes=255,
+             conditions=model2.CONDITIONS),
     ),
 }
 
@@ -56,7 +60,7 @@ def plan_from(config: dict, plan: Plan) -> Plan:
     max_nodes = solver.pop("max_nodes", plan.max_nodes)
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, int) or not 1 <= max_nodes <= 65535:
         raise ConfigError(f"max_nodes must be a whole number in 1..65535, got {max_nodes!r}")
-    return Plan(override(plan.settings, solver), max_nodes)
+    return replace(plan, settings=override(plan.settings, solver), max_nodes=max_nodes)
 
 
 def load(name: str, config_path: Optional[str | Path] = None) -> tuple[POMDP, Plan]:

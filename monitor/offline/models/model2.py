@@ -25,6 +25,7 @@ TRACK = ("normal", "slippery")
 BRAKE = ("normal", "degraded")
 COMPONENTS = (DISTANCE, REL_SPEED, OBSTACLE, TRACK, BRAKE)
 ACTIONS = ("maintain", "nominal_braking", "emergency_braking")
+CONDITIONS = (3, 4)  # track and brake: reported adverse, they must never lower the demand
 DIMS = tuple(len(c) for c in COMPONENTS)
 
 # Eq. 10 as printed: a reward only where the printed case applies, 0 elsewhere.
@@ -33,6 +34,9 @@ PAPER_REWARD = {1: {0: 0.0}, 2: {0: -5.0, 1: -5.0}, 3: {0: -20.0, 2: -20.0}, 4: 
 # when the risk is low. Rows: risk category 1..4; columns: maintain, nominal, emergency.
 CORRECTED_REWARD = ((0.0, -2.0, -5.0), (-5.0, 0.0, -2.0), (-20.0, -5.0, 0.0), (-100.0, -50.0, 0.0))
 REWARD_VARIANTS = ("corrected", "paper")
+# The start belief's track and brakes: "any" = the four combinations equally likely (the
+# default since issue 11), "normal" = normal track and normal brakes (before issue 11).
+START_CONDITIONS = ("any", "normal")
 
 
 def state_tuples() -> list[tuple[int, ...]]:
@@ -72,10 +76,14 @@ class Model2Params:
     degrade_slippery_track: float = 0.002        # eq. 6: ... on a slippery track
     brake_recovery: float = 0.001                # P(degraded -> normal) per step
     misperception: tuple = (0.02, 0.05, 0.05, 0.02, 0.01)  # eq. 9, epsilon per component
+    start_conditions: str = "any"                # see START_CONDITIONS and docs/models.md section 6
 
     def check(self) -> None:
         if self.reward not in REWARD_VARIANTS:
             raise ModelError(f"unknown reward variant {self.reward!r}; known: {', '.join(REWARD_VARIANTS)}")
+        if self.start_conditions not in START_CONDITIONS:
+            raise ModelError(f"unknown start_conditions {self.start_conditions!r}; "
+                             f"known: {', '.join(START_CONDITIONS)}")
         if not 0.0 <= self.discount < 1.0:
             raise ModelError(f"discount must be in [0, 1), got {self.discount}")
         for name in ("time_step_s", "speed_mps", "critical_length_m", "close_length_m", "medium_length_m",
@@ -211,9 +219,12 @@ def reward(p: Model2Params) -> np.ndarray:
 
 
 def start_belief(p: Model2Params) -> np.ndarray:
+    """An obstacle first seen in the far level, type and speed class from the priors; track and
+    brakes normal, or (start_conditions = "any") each of the four combinations equally likely,
+    so that the value the solver maximises weighs adverse conditions (docs/models.md section 6)."""
     b0 = np.zeros(len(state_tuples()))
     for i, (d, r, o, k, b) in enumerate(state_tuples()):
-        if d == 0 and k == 0 and b == 0:
+        if d == 0 and (p.start_conditions == "any" or k == 0 and b == 0):
             b0[i] = p.obstacle_prior[o] * p.speed_prior[r]
     return b0 / b0.sum()
 
