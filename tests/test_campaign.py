@@ -1,6 +1,8 @@
 """The fault-injection campaign (verification/campaign.py): the quick campaign passes, and
-its checkers can fail: a planted unsafe monitor is reported unsafe, a monitor blind to a
-fault is reported undetected, a refused table is a detection and not a crash, and the
+its checkers can fail: a planted unsafe monitor is reported unsafe, the old nominal envelope
+collides in the campaign's world (which brakes only as the declaration guarantees), a
+monitor blind to a fault is reported undetected, a monitor that brakes for a ghost fails the
+ghost and false-braking checks, a refused table is a detection and not a crash, and the
 virtual-bus runs count the codec's own rejects."""
 from __future__ import annotations
 
@@ -11,8 +13,11 @@ import pytest
 
 from monitor.core import cycle
 from monitor.core import table as table_mod
+from monitor.core.braking import Curves
 from monitor.core.config import Config, ConfigurationError
-from monitor.core.types import EMERGENCY, SERVICE
+from monitor.core.types import (
+    EMERGENCY, R_DISPUTE, R_ENVELOPE, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR, SERVICE,
+)
 from verification import campaign as cp
 
 
@@ -33,13 +38,19 @@ def test_quick_campaign_is_safe_and_detects_every_fault(quick):
         d = core["detection"][kind]
         assert d["manifest"] > 0 and d["detected"] == d["manifest"], (kind, d)
     assert all(summary["detection"].values())
-    # the fault-free runs never brake without an obstacle; silence always does (the safe side's price)
-    assert core["single"]["none"]["false_braking"] == 0
-    assert core["cells"]["silence|no-obstacle"]["false_braking"] == core["cells"]["silence|no-obstacle"]["runs"] > 0
+    # the fault-free runs never brake without an obstacle; silence always does (the safe side's price),
+    # and that is the reaction to a diagnosed fault, not false braking
+    assert core["single"]["none"]["brake_without_obstacle"] == core["single"]["none"]["false_braking"] == 0
+    silence = core["cells"]["silence|no-obstacle"]
+    assert silence["brake_without_obstacle"] == silence["runs"] > 0 and silence["false_braking"] == 0
+    # issue 11: false braking at most 5 %, none unsafe; a 0.3 s ghost beyond SBI never stops the train
+    assert core["false_braking_rate"] <= 0.05 < core["brake_without_obstacle_rate"]
+    ghost = summary["ghost"]
+    assert ghost["runs"] == 24 and not ghost["stopped"] and ghost["min_speed_mps"] == 40.0 and not ghost["undiagnosed"]
     # collisions only where the object appears inside the emergency braking distance
     assert all(c["collisions"] == 0 for key, c in core["cells"].items() if not key.endswith("|sudden-120m"))
     bus = summary["bus"]
-    assert bus["runs"] >= 12 and bus["unsafe"] == 0 and bus["crashes"] == 0
+    assert bus["runs"] >= 12 and bus["unsafe"] == 0 and bus["crashes"] == 0 and bus["false_braking"] == 0
     assert set(bus["detected"]) == set(cp.KINDS) and all(bus["detected"].values())
     assert all(c.passed for c in cp.checks(summary)), [c.line() for c in cp.checks(summary) if not c.passed]
 
@@ -88,10 +99,14 @@ def _never_braking_table(model: str = "m1") -> bytes:
     return table_mod.encode(dict(t.header), (0,) * t.nodes, t.next)
 
 
+def _no_supervision(monkeypatch):
+    monkeypatch.setattr(cycle, "supervision_demand", lambda present, distance, ebi, sbi, warning, held: (0, False))
+
+
 def test_a_planted_unsafe_monitor_is_reported_unsafe(monkeypatch):
-    """No envelope, a table that never brakes, service braking on errors: the campaign's
+    """No supervision, a table that never brakes, service braking on errors: the campaign's
     checker must call it unsafe (and the train hits the obstacle)."""
-    monkeypatch.setattr(cycle, "envelope_demand", lambda present, distance, alpha2: 0)
+    _no_supervision(monkeypatch)
     cfg = Config(safe_reaction=SERVICE)
     table = _never_braking_table()
     bad = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), config=cfg, table_bytes=table, keep_trace=True)
@@ -107,11 +122,11 @@ def test_a_planted_unsafe_monitor_is_reported_unsafe(monkeypatch):
     assert cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"))["unsafe"] == 0
 
 
-def test_a_voted_obstacle_inside_alpha2_needs_emergency(monkeypatch):
+def test_a_voted_obstacle_inside_ebi_needs_emergency(monkeypatch):
     """The voted-obstacle clause alone: a phantom 50 m ahead on one channel of a clear track.
-    Without the envelope, service braking on the system error is not enough for the two
-    cycles before the disagreement becomes a perceptor error."""
-    monkeypatch.setattr(cycle, "envelope_demand", lambda present, distance, alpha2: 0)
+    Without the supervision, nothing brakes in the cycles before the disagreement becomes a
+    perceptor error."""
+    _no_supervision(monkeypatch)
     monkeypatch.setattr(cp, "instantiate", lambda spec, rng: [cp.Fault("contradiction", 0, 2.0, 4.0, (500,))])
     res = cp.simulate(cp.RunSpec(("contradiction",), "no-obstacle", 0, "m1"), config=Config(safe_reaction=SERVICE),
                       table_bytes=_never_braking_table(), keep_trace=True)
@@ -144,7 +159,7 @@ def test_a_refused_table_is_detected_and_not_a_crash(kind, variants):
     res = cp.simulate(cp.RunSpec((kind, "silence"), "static-300m-20", 2, "m2"))
     assert res["crash"] is None and res["config_error"]
     assert res["unsafe"] == 0 and not res["entered"] and not res["collision"]
-    assert res["false_braking"]                               # held at the entry: counted as the price
+    assert res["brake_without_obstacle"] and not res["false_braking"]   # held at the entry: a diagnosed fault's price
     table_fault = next(f for f in res["faults"] if f["kind"] == kind)
     assert table_fault["detected"]
 
@@ -178,3 +193,81 @@ def test_vcan_sample_in_the_sandbox():
     assert run["unsafe"] == 0 and not run["collision"]
     assert run["cycles"] >= 50 and run["frames_received"] > 300
     assert all(run["detected"].values()) and run["detected"]
+
+
+def _nominal_envelope(cfg, speed, track, brake, closing, age, service=False):
+    """The envelope before issue 11: v^2 / 2a + v t_r with the nominal 3 (1) m/s^2 and 0.5 s."""
+    a = 1000 if service else 3000
+    d = -(-(speed * speed * 10000 + 2 * a * speed * 500) // (2 * a * 10000))
+    return Curves(d, d, d, d)
+
+
+def test_the_old_nominal_envelope_collides_in_the_campaigns_world(monkeypatch):
+    """The world's train brakes only as the declaration guarantees (2.4 m/s^2 after 1 s): the
+    nominal alpha2 of the old core is too short there, and the checker says so."""
+    monkeypatch.setattr(cycle, "curves", _nominal_envelope)
+    res = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table(), keep_trace=True)
+    assert res["collision"] and res["unsafe"] > 0 and res["unsafe_first"]["true_inside"]
+    monkeypatch.undo()
+    good = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table())
+    assert not good["collision"] and good["unsafe"] == 0 and good["stop_margin_m"] >= Config().standstill_margin_dm / 10
+
+
+def test_the_world_brakes_as_guaranteed_no_better():
+    cfg = Config()
+    brake = cp.WorldBrake(cfg)
+    got = [brake.decel_mps2(EMERGENCY, 35.0) for _ in range(12)]
+    assert got[:10] == [0.0] * 10 and got[10:] == [2.2, 2.2]             # 1 s dead time, band 2 above 30 m/s
+    assert brake.emergency_mps2(29.99) == 2.4
+    brake = cp.WorldBrake(cfg)
+    got = [brake.decel_mps2(SERVICE, 20.0) for _ in range(22)]
+    assert got[:20] == [0.0] * 20 and got[20:] == [0.8, 0.8]               # service: 2 s, 0.8 m/s^2
+    weak = Config(emergency_decel_mms2=1500, emergency_band2_cms=0, service_decel_mms2=700, emergency_buildup_ms=1500)
+    assert cp.WorldBrake(weak).emergency_mps2(40.0) == 1.5
+    res = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m2"), config=weak)
+    base = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m2"))
+    assert res["unsafe"] == 0 and not res["collision"] and res["stop_margin_m"] != base["stop_margin_m"]
+
+
+def test_false_braking_counts_only_what_no_diagnosed_fault_explains():
+    E, S = EMERGENCY, SERVICE
+    clear, moving = [False] * 4, [True] * 4
+    # a stale channel's emergency, then the latch holding it: the reaction to a fault
+    assert cp.false_braking_cycles([E, E, E, 0], [R_STALE | R_SYSTEM_ERROR, R_LATCH, R_LATCH, 0], clear, moving) == (True, False)
+    # a dispute's supervision emergency (a phantom inside EBI), held by the latch: false braking
+    assert cp.false_braking_cycles([E, E, 0, 0], [R_ENVELOPE | R_DISPUTE, R_LATCH, 0, 0], clear, moving) == (True, True)
+    # the latch after a stale reaction, then a new cause of its own: false from there
+    assert cp.false_braking_cycles([E, E, S, 0], [R_STALE, R_LATCH, 1 << 10, 0], clear, moving) == (True, True)
+    # a safe stop; braking with an obstacle in range or before the entry never counts
+    assert cp.false_braking_cycles([E] * 4, [R_SAFE_STOP | R_PERCEPTOR] * 4, clear, moving) == (True, False)
+    assert cp.false_braking_cycles([E] * 4, [R_ENVELOPE] * 4, [True] * 4, moving) == (False, False)
+    assert cp.false_braking_cycles([E] * 4, [R_ENVELOPE] * 4, clear, [False] * 4) == (False, False)
+
+
+def test_a_monitor_that_brakes_for_a_ghost_fails_the_ghost_and_false_braking_checks(monkeypatch):
+    """A supervision that brakes for any reported obstacle, held to standstill (as the core
+    before issue 11 answered a disagreement): the ghost stops the train."""
+    cfg = Config(emergency_release=0)
+    plan = cp.ghost_plan(True, cfg)[:4]
+    good = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f), ghost_dm=f[0].variant[0]) for s, f in plan])
+    assert good["runs"] == 4 and not good["stopped"] and good["false_braking"] == 0 and good["max_demand"] == 0
+    monkeypatch.setattr(cycle, "supervision_demand",
+                        lambda present, distance, ebi, sbi, warning, held: (EMERGENCY, True) if present else (0, False))
+    bad = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f), ghost_dm=f[0].variant[0]) for s, f in plan])
+    assert len(bad["stopped"]) == 4 and bad["false_braking"] == 4
+    summary = {"mode": "quick", "core": cp.aggregate([]), "ghost": bad}
+    assert not next(c for c in cp.checks(summary) if "ghost" in c.name).passed
+
+
+def test_a_contradiction_that_persists_needs_perceptor(monkeypatch):
+    """The contradiction's diagnostic: the module flag at once, and perceptor once it has
+    persisted persistence_cycles; a monitor that never counts the disagreement is caught."""
+    fault = [cp.Fault("contradiction", 3, 2.0, 4.0, (5000,))]
+    spec = cp.RunSpec(("contradiction",), "no-obstacle", 0, "m2")
+    res = cp.simulate(spec, faults=fault)
+    assert res["faults"][0]["detected"] and {"perceptor", "dispute"} <= set(res["reasons_seen"])
+    monkeypatch.setattr(cycle, "disagreement", lambda sa, sb: False)
+    blind = cp.simulate(spec, faults=fault)
+    assert blind["faults"][0]["manifest_cycle"] is not None and not blind["faults"][0]["detected"]
+    short = cp.simulate(spec, faults=[cp.Fault("contradiction", 3, 2.0, 2.5, (5000,))])   # 5 cycles: the flag suffices
+    assert short["faults"][0]["detected"] and "perceptor" not in short["reasons_seen"]

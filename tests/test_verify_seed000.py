@@ -7,6 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from monitor.core.braking import curves
+from monitor.core.config import Config
 from verification import seed000
 from verification.seed000 import LITERAL, PAPER, SHIPPED, Scenario, simulate
 
@@ -41,7 +43,18 @@ def test_quick_section_passes_and_writes_its_figures(quick_section):
         assert (out / name).read_bytes()[:8] == PNG_MAGIC, name
         assert f"]({name})" in sec.markdown, name
     assert "| collisions |" in sec.markdown and "300" in sec.markdown
+    phantoms = next(c for c in sec.checks if "stops per train-hour" in c.name)
+    assert phantoms.details["after_revocable"] < phantoms.details["after_held"]
+    assert "stops to standstill per train-hour" in sec.markdown and "75a5c9f" in sec.markdown
     assert messages, "progress was never called"
+
+
+def test_phantoms_stop_the_train_only_when_the_emergency_is_held():
+    """The same phantom world: revocable release, few stops; held to standstill, a stop per phantom."""
+    revocable = simulate(seed000.PHANTOMS, 40, 60.0, seed=9)
+    held = simulate(seed000.PHANTOMS_HELD, 40, 60.0, seed=9)
+    assert revocable.metrics["false_onsets"] > 50
+    assert seed000.stops_per_hour(held) > 10 * max(1.0, seed000.stops_per_hour(revocable))
 
 
 def test_vectorised_run_agrees_with_the_real_core(small_run):
@@ -109,10 +122,12 @@ def test_train_seconds_are_counted():
 
 def test_zones_and_obstacle_window():
     a1, a2 = SHIPPED.alphas_at_line_speed_m()
-    assert (a1, a2) == (820.0, 286.7)          # 40^2/2 + 40*0.5 = 820 m; 40^2/6 + 20 = 286.67 m, rounded up to dm
+    # the core's zones under normal conditions at 40 m/s, a static obstacle: alpha2 = EBI, alpha1 = the service EBI
+    assert (a1, a2) == (curves(Config(), 4000, 0, 0, 4000, 0, service=True).ebi_dm / 10,
+                        curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm / 10) == (1588.8, 475.8)
     lo, hi = SHIPPED.appear_window_m()
-    assert math.isclose(lo, 553.35) and math.isclose(hi, 603.35)
-    assert PAPER.alphas_at_line_speed_m() == (300.0, 100.0)
+    assert math.isclose(lo, 1032.3) and math.isclose(hi, 1082.3)
+    assert PAPER.alphas_at_line_speed_m() == (300.0, 100.0)   # one cycle (4 m) + v^2/2a with 8.334 / 2.703 m/s^2
     assert PAPER.appear_window_m() == (200.0, 250.0)   # the paper's 200..250 m
     p_a, p_c = SHIPPED.hazards()
     assert math.isclose(p_a / (p_a + p_c), 0.2)

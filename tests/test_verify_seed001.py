@@ -35,7 +35,7 @@ def test_quick_section_passes_and_writes_its_figures(quick_section):
     failed = [c.line() for c in sec.checks if not c.passed]
     assert not failed, failed
     names = " ".join(c.name for c in sec.checks)
-    for needed in ("agrees with the core", "train-seconds", "time with obstacles", "envelope and latch", "impact"):
+    for needed in ("agrees with the core", "train-seconds", "time with obstacles", "supervision and latch", "impact"):
         assert needed in names
     assert "seed001_metrics.png" in sec.figures
     for fig in sec.figures:
@@ -52,6 +52,8 @@ def test_quick_section_simulates_enough_and_replays_twenty_trains(quick_section)
     agree = by_name["seed001: vectorised monitor agrees with the core"]
     assert agree.details["trains"] >= 20 and agree.details["cycles"] >= 20 * 3000
     assert by_name["seed001: train-seconds simulated"].details["main"] >= 50_000
+    inv = by_name["seed001: supervision and latch hold on every step"].details
+    assert inv["env_steps"] > 1000 and inv["latch_releases"] > 100 and inv["latch_steps"] > inv["latch_releases"]
 
 
 def test_vectorised_run_agrees_with_the_core_and_the_comparison_can_fail(setup_model):
@@ -63,6 +65,9 @@ def test_vectorised_run_agrees_with_the_core_and_the_comparison_can_fail(setup_m
     assert len(set(run.trace["observation"].ravel() // 36)) == 4
     bad = {k: v.copy() for k, v in run.trace.items()}
     bad["demand"][150, 7] = (bad["demand"][150, 7] + 1) % 3
+    assert agrees_with_core(setup, bad, 20)[0] is False
+    bad = {k: v.copy() for k, v in run.trace.items()}
+    bad["warning"][:, 3] = ~bad["warning"][:, 3].astype(bool)           # the warning output is compared too
     assert agrees_with_core(setup, bad, 20)[0] is False
 
 

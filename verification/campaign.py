@@ -3,9 +3,9 @@ crossed with obstacle scenarios, through the monitor core, the real runner and c
 virtual bus, and real SocketCAN vcan0 in the user-mode-Linux sandbox.
 
 Core-level runs (the bulk, >= 10,000 in full mode, two processes): a small simulated world
-(the player's train kinematics with the monitor's demand applied, six sensor channels with
-Gaussian distance noise, the obstacle scenario) drives `monitor.core.cycle` directly. Each
-fault acts where it acts in the product:
+(a train that brakes as its braking declaration guarantees at worst, six sensor channels
+with Gaussian distance noise, the obstacle scenario) drives `monitor.core.cycle` directly.
+Each fault acts where it acts in the product:
 
 * value faults (stuck, noise burst, missed detection, contradiction) change a channel's report
   before it is framed, exactly as `can_bus.player.Player` does;
@@ -19,13 +19,20 @@ fault acts where it acts in the product:
   late; a corrupted or mismatched table: `cycle.create` must refuse it (ConfigurationError),
   and the train is then held at the entry under an emergency demand.
 
-Each run counts an *unsafe outcome* (at some cycle a voted obstacle, or a true obstacle,
-inside the emergency braking distance alpha2(v) while the monitor demands less than
-emergency at that cycle and at the next one), crashes (any exception, in the harness, the
-codec's receive path or swallowed by the core's fail-safe), collisions, and false braking (a
-brake demand while no obstacle is within sensor range, or a train held at the entry). Every
-fault kind is shown detected by its named diagnostic in every single-fault run in which it
-manifested.
+Each run counts an *unsafe outcome* (at some cycle a voted obstacle, or a true obstacle at
+the true speed, inside the emergency intervention curve EBI of `monitor.core.braking.curves`
+with the run's configuration while the monitor demands less than emergency at that cycle and
+at the next one), crashes (any exception, in the harness, the codec's receive path or
+swallowed by the core's fail-safe), collisions, *false braking* (a brake demand while no true
+obstacle is within sensor range that is not the reaction to a fault the monitor diagnosed)
+and, the wider measure, *braking without an obstacle* (any such demand, fault reactions and
+trains held at the entry included). Every fault kind is shown detected by its named
+diagnostic in every single-fault run in which it manifested. Ghost runs (a 0.3 s phantom on
+one channel beyond SBI, clear track, 40 m/s) must never bring the train to a standstill.
+
+`run(quick, progress, config=cfg)` and `section(out_dir, quick, progress, config=cfg)` take
+the monitor's Config (a braking declaration applied: `monitor.declaration`); the world's
+train brakes as that declaration guarantees.
 """
 from __future__ import annotations
 
@@ -49,11 +56,13 @@ from typing import Optional
 import numpy as np
 from monitor.core import cycle
 from monitor.core import table as table_mod
-from monitor.core.config import Config, ConfigurationError
-from monitor.core.envelope import braking_distance_dm
+from monitor.core.braking import curves
+from monitor.core.config import Config, ConfigurationError, emergency_bands
+from monitor.core.freshness import channel_status
 from monitor.core.types import (
-    ABSENT, EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, NORMAL, PRESENT,
-    R_DEADLINE, R_PERCEPTOR, R_STALE, REASON_NAMES, SAFE_STOP, Inputs, Report, Train,
+    ABSENT, EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE,
+    R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_TRAIN_INPUT, REASON_NAMES, SAFE_STOP, SERVICE, STATIC,
+    Inputs, Report, Train,
 )
 
 from .report import Check, Progress, Section, md_table
@@ -103,7 +112,9 @@ CATALOGUE = {f.name: f for f in (
               "codec reject `rate_exceeded` (quarantine, report withdrawn), then reason bit `stale`", "rate_exceeded reject, stale"),
     FaultKind("contradiction", "contradiction within a module",
               "the channel's status flipped: PRESENT -> ABSENT, ABSENT -> a phantom obstacle at 30..900 m",
-              "reason bit `perceptor` (the disagreement persists `persistence_cycles`; mode SAFE_STOP)", "perceptor, SAFE_STOP"),
+              "`module_flags` bit of the channel's module at once (with every channel fresh a dispute: reason bits "
+              "`dispute` and `warning`); and reason bit `perceptor` (mode SAFE_STOP) once the disagreement has "
+              "persisted `persistence_cycles` cycles in a row", "module flag, perceptor if it persists"),
     FaultKind("stale_timestamp", "stale timestamps",
               "the report handed to the core carries a tick older than the timeout, or one from the future",
               "reason bit `stale` (a report from the past or the future counts as DEGRADED)", "stale"),
@@ -125,8 +136,14 @@ PERIOD_MS = 100
 RANGE_M = 1000.0
 NOISE_SIGMA_M = 0.5
 BURST_FACTOR = 50.0
-BRAKE_DELAY_S = 0.5
-SERVICE_MPS2, EMERGENCY_MPS2 = 1.0, 3.0
+FAULT_REACTION = R_STALE | R_SAFE_STOP | R_DEADLINE | R_TRAIN_INPUT | R_INIT   # reasons of a diagnosed fault
+FALSE_BRAKING_LIMIT = 0.05     # issue 11: at most 5 % of the runs brake falsely
+# The quick campaign's core-level and ghost runs (324 + 24) with the monitor before the braking
+# curves (commit 75a5c9f: nominal alpha2, a 2oo2 disagreement answered by safe_reaction, every
+# emergency latched to standstill), in that commit's own world (a train braking at the nominal
+# 1 and 3 m/s^2), measured by running this module's measures over that commit's core.
+BEFORE_QUICK = {"commit": "75a5c9f", "runs": 348, "false_braking": 32, "brake_without_obstacle": 146,
+                "ghosts": 24, "ghosts_stopped": 24, "unsafe": 0}
 OBSTACLE_TYPES = ("static", "dynamic", "train")
 ROUTE_BEFORE_S, ROUTE_AFTER_S = 0.3, 0.8     # frame faults: real codec path around the window
 SEEDS = 11          # full mode: 117 combinations x 8 scenarios x 11 seeds = 10,296 core-level runs
@@ -161,11 +178,13 @@ SCENARIOS = (
                   (Obstacle(600.0, 0.0, 8.0, "train"),), (0.5, 12.0)),
     WorldScenario("vehicle-ahead", "a vehicle 400 m ahead at 3 m/s, ours at 20 m/s", 20.0, 60.0,
                   (Obstacle(400.0, 0.0, 3.0, "dynamic"),), (0.5, 14.0)),
-    WorldScenario("sudden-120m", "an object appears 120 m ahead (inside alpha2) at 5 s, 30 m/s", 30.0, 20.0,
+    WorldScenario("sudden-120m", "an object appears 120 m ahead (inside EBI) at 5 s, 30 m/s", 30.0, 20.0,
                   (Obstacle(270.0, 5.0, 0.0, "static"),), (0.5, 6.0)),
 )
-SCENARIO_BY_NAME = {s.name: s for s in SCENARIOS}
-UNAVOIDABLE = "sudden-120m"      # the object appears inside the emergency braking distance: collisions are physics
+GHOST_SCENARIO = WorldScenario("ghost-clear-40", "clear track, 40 m/s, a 0.3 s ghost on one channel beyond SBI", 40.0, 40.0)
+GHOST_S = 0.3
+SCENARIO_BY_NAME = {s.name: s for s in SCENARIOS + (GHOST_SCENARIO,)}
+UNAVOIDABLE = "sudden-120m"      # the object appears inside the emergency intervention curve: collisions are physics
 
 
 @dataclass(frozen=True)
@@ -323,14 +342,78 @@ def _shipped_setup(model: str, cfg: Config) -> cycle.Setup:
 
 
 def unsafe_at(inside: list, demands: list) -> list[int]:
-    """The unsafe cycles: an obstacle (voted or true) inside alpha2 at cycle i while the demand
+    """The unsafe cycles: an obstacle (voted or true) inside EBI at cycle i while the demand
     is emergency neither at i nor at i + 1 (the last cycle must show it itself)."""
     n = len(demands)
     return [i for i in range(n) if inside[i] and demands[i] != EMERGENCY and (i + 1 >= n or demands[i + 1] != EMERGENCY)]
 
 
-def _alpha2(speed_cms: int, cfg: Config) -> int:
-    return braking_distance_dm(min(max(speed_cms, 0), MAX_SPEED_CMS), cfg.emergency_decel_mms2, cfg.reaction_ms)
+def ebi_dm(cfg: Config, speed_cms: int, closing_cms: int, age_ms: int = 0) -> int:
+    """The emergency intervention curve (normal track and brakes) at a speed, for an obstacle
+    closing at `closing_cms`, from a report `age_ms` old: monitor.core.braking.curves."""
+    return curves(cfg, min(max(speed_cms, 0), MAX_SPEED_CMS), 0, 0, closing_cms, age_ms).ebi_dm
+
+
+def picture(handed: list, tick: int, cfg: Config, speed_cms: int) -> tuple[int, int]:
+    """(closing speed, age) the monitor's curves take from the reports it was handed: the
+    largest of its fresh PRESENT reports (the train's speed and 0 if there is none)."""
+    timeout = cfg.timeout_cycles * cfg.period_ms
+    fresh = [r for r in handed if channel_status(r, tick, timeout) == PRESENT]
+    if not fresh:
+        return speed_cms, 0
+    return max(r.closing_cms for r in fresh), max(tick - r.tick for r in fresh)
+
+
+class WorldBrake:
+    """The world's train brakes as its declaration guarantees at worst, not better: each brake
+    acts at its guaranteed deceleration (the emergency brake by speed band; flat track,
+    normal conditions) from its equivalent build-up time after it was demanded (a pure dead
+    time of `emergency_buildup_ms` / `service_buildup_ms`), for as long as it was demanded."""
+
+    def __init__(self, cfg: Config):
+        self.bands = emergency_bands(cfg)
+        self.service_mps2 = cfg.service_decel_mms2 / 1000.0
+        self.delay_e = -(-cfg.emergency_buildup_ms // cfg.period_ms)
+        self.delay_s = -(-cfg.service_buildup_ms // cfg.period_ms)
+        self.history: list = []
+
+    def emergency_mps2(self, speed_mps: float) -> float:
+        v = speed_mps * 100.0
+        return next(a for lo, a in reversed(self.bands) if v >= lo) / 1000.0
+
+    def decel_mps2(self, demand: int, speed_mps: float) -> float:
+        """The deceleration over the next step, given this cycle's demand."""
+        self.history.append(demand)
+
+        def ago(n: int) -> int:
+            return self.history[-1 - n] if len(self.history) > n else 0
+        if ago(self.delay_e) == EMERGENCY:
+            return self.emergency_mps2(speed_mps)
+        return self.service_mps2 if ago(self.delay_s) >= SERVICE else 0.0
+
+
+def reaction_to_fault(reasons: int, held_by_fault: bool) -> bool:
+    """A demand that answers a fault the monitor diagnosed (stale, safe stop, deadline, train
+    input, init), or an emergency the latch still holds after such an answer."""
+    return bool(reasons & FAULT_REACTION) or bool(reasons & R_LATCH and held_by_fault)
+
+
+def false_braking_cycles(demands: list, reasons: list, obstacle_in_range: list, moving: list) -> tuple[bool, bool]:
+    """(braking without an obstacle, false braking) of a run: a brake demand while the train
+    is on its way and no true obstacle is in sensor range; false unless it is the reaction to
+    a diagnosed fault (the latch's hold after such a reaction included)."""
+    without = false = False
+    held_by_fault = False
+    for demand, r, near, on in zip(demands, reasons, obstacle_in_range, moving):
+        reaction = reaction_to_fault(r, held_by_fault)
+        if demand == EMERGENCY and not r & R_LATCH:
+            held_by_fault = reaction
+        elif demand != EMERGENCY:
+            held_by_fault = False
+        if on and demand > 0 and not near:
+            without = True
+            false = false or not reaction
+    return without, false
 
 
 def _core_step():
@@ -341,22 +424,25 @@ def _core_step():
 
 
 def simulate(spec: RunSpec, *, config: Optional[Config] = None, table_bytes: Optional[bytes] = None,
-             keep_trace: bool = False) -> dict:
-    """One core-level run. Never raises: an exception anywhere is the run's `crash`."""
+             keep_trace: bool = False, faults: Optional[list] = None) -> dict:
+    """One core-level run (faults drawn from the spec's seed unless given). Never raises: an
+    exception anywhere is the run's `crash`."""
     try:
-        return _simulate(spec, config or Config(), table_bytes, keep_trace)
+        return _simulate(spec, config or Config(), table_bytes, keep_trace, faults)
     except Exception as exc:  # noqa: BLE001 - a crash is a result of the campaign, not its end
         return {"key": spec.key, "kinds": spec.kinds, "scenario": spec.scenario, "seed": spec.seed,
                 "model": spec.model, "crash": f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}",
-                "unsafe": 0, "collision": False, "false_braking": False, "faults": [], "cycles": 0}
+                "unsafe": 0, "collision": False, "false_braking": False, "brake_without_obstacle": False,
+                "faults": [], "cycles": 0}
 
 
-def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_trace: bool) -> dict:
+def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_trace: bool,
+              faults: Optional[list]) -> dict:
     from can_bus.codec import OBSTACLE_IDS, Receiver, Sender, report_signals
 
     rng = random.Random(f"railguard-campaign/{spec.key}")
     scen = SCENARIO_BY_NAME[spec.scenario]
-    faults = instantiate(spec, rng)
+    faults = instantiate(spec, rng) if faults is None else list(faults)
     period = cfg.period_ms
     dt = period / 1000.0
 
@@ -396,17 +482,16 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     tol2 = 2 * cfg.distance_tolerance_dm
     undetected_corrupt = 0
 
-    # ---- world state (the player's kinematics)
+    # ---- world state: a train braking as its declaration guarantees, no better
     t = 0.0
     position = 0.0
     speed = scen.speed_mps
-    decel = 0.0
     started = False
     collision = False
     impact_speed = None
     stop_margin = None
-    rate = EMERGENCY_MPS2 / BRAKE_DELAY_S
-    targets = (0.0, SERVICE_MPS2, EMERGENCY_MPS2)
+    min_speed = speed
+    brake = WorldBrake(cfg)
     obstacles = [(o.position_m, o.appear_s, o.speed_mps, OBSTACLE_TYPES.index(o.type)) for o in scen.obstacles]
 
     def nearest():
@@ -419,8 +504,9 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                 best = (d, v, typ)
         return best
 
-    demands, inside, reasons_l, flags_l, modes_l = [], [], [], [], []
-    false_braking = False
+    demands, inside, reasons_l, flags_l, modes_l, near_l, moving_l = [], [], [], [], [], [], []
+    streak: dict = {}              # contradiction fault index -> consecutive cycles of an ABSENT/PRESENT split
+    persisted: dict = {}           # contradiction fault index -> cycle its streak reached persistence_cycles
     braked = False
     overruns = 0
     prev_demand = EMERGENCY
@@ -475,6 +561,8 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             for f in active:
                 if f.kind == "contradiction":
                     rep = (ABSENT, 0, rep[2], rep[3]) if rep[0] == PRESENT else (PRESENT, rep[1] or f.variant[0], rep[2], rep[3])
+                elif f.kind == "ghost":           # a static-looking phantom at a fixed distance
+                    rep = (PRESENT, f.variant[0], round(speed * 100) if started else 0, STATIC)
             # manifestation of value faults: the report differs from the fault-free one
             if rep[0] != clean[0] or (rep[0] == PRESENT and abs(rep[1] - clean[1]) > tol2):
                 for f in active:
@@ -533,6 +621,14 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                     handed[ch] = handed[ch]._replace(tick=tick + shift)
                     manifest.setdefault(fault_index[id(f)], k)
 
+        # a contradiction persists while its channel and the partner, as handed, split ABSENT/PRESENT
+        for fi, f in enumerate(faults):
+            if f.kind == "contradiction" and f.start_s <= t < f.end_s:
+                pair = {channel_status(handed[c], tick, cfg.timeout_cycles * period) for c in (f.channel, f.channel ^ 1)}
+                streak[fi] = streak.get(fi, 0) + 1 if pair == {ABSENT, PRESENT} else 0
+                if streak[fi] >= cfg.persistence_cycles:
+                    persisted.setdefault(fi, k)
+
         overrun_now = any(f.start_s <= t < f.end_s for f in overrun_faults)
         if overrun_now:
             manifest.setdefault(fault_index[id(overrun_faults[0])], k)
@@ -546,7 +642,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                 core_exceptions += 1
                 state, out = cycle.step(setup, state, inputs, tick)
             demand, mode = out.demand, out.mode
-            voted_in = out.distance_dm != NO_DISTANCE and out.distance_dm <= _alpha2(v_in, cfg)
+            voted_in = out.distance_dm != NO_DISTANCE and out.distance_dm <= ebi_dm(cfg, v_in, *picture(handed, tick, cfg, v_in))
             reasons_l.append(out.reasons)
             flags_l.append(out.module_flags)
         else:
@@ -555,18 +651,16 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             flags_l.append(0)
         overruns = overruns + 1 if overrun_now else 0
         true_speed_cms = math.ceil(speed * 100) if started else 0
-        true_in = near is not None and near[0] * 10 <= _alpha2(true_speed_cms, cfg)
+        true_in = near is not None and near[0] * 10 <= ebi_dm(cfg, true_speed_cms, math.ceil(true_speed_cms - near[1] * 100))
         demands.append(demand)
         inside.append(voted_in or true_in)
         modes_l.append(mode)
-        in_range = near is not None and 0 <= near[0] <= RANGE_M
-        if started and demand > 0:
-            braked = True
-            if not in_range:
-                false_braking = True
+        near_l.append(near is not None and 0 <= near[0] <= RANGE_M)
+        moving_l.append(started)
+        braked = braked or (started and demand > 0)
         if trace is not None:
             trace.append((tick, t, speed if started else 0.0, None if near is None else near[0], demand, mode,
-                          voted_in, true_in))
+                          voted_in, true_in, reasons_l[-1]))
 
         # ---- the world moves with the demand (a late cycle's demand arrives one period late)
         applied = prev_demand if overrun_now else demand
@@ -574,9 +668,9 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         if not started and mode == NORMAL and demand == 0:
             started = True
         if started and t < scen.duration_s - 1e-9:
-            target = targets[applied]
-            decel += max(-rate * dt, min(rate * dt, target - decel))
+            decel = brake.decel_mps2(applied, speed)
             new_speed = max(0.0, speed - decel * dt)
+            min_speed = min(min_speed, new_speed)
             position += (speed + new_speed) / 2 * dt
             speed = new_speed
             t += dt
@@ -597,8 +691,9 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
 
     n = len(demands)
     unsafe_cycles = unsafe_at(inside, demands)
+    without, false_braking = false_braking_cycles(demands, reasons_l, near_l, moving_l)
     if setup is None:
-        false_braking = True            # held at the entry by the shell's emergency demand
+        without = True                  # held at the entry by the shell's emergency demand (a diagnosed fault)
 
     # ---- detection of each fault
     seen_bits = 0
@@ -612,7 +707,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             detected = config_error is not None
             first = 0
         elif first is not None and setup is not None:
-            diag_cycle = _first_diagnostic(f, first, reasons_l, flags_l, modes_l, receiver)
+            diag_cycle = _first_diagnostic(f, first, reasons_l, flags_l, modes_l, receiver, persisted.get(i))
             detected = diag_cycle is not None
         elif setup is None:
             first = None                 # the monitor never ran: nothing to manifest in
@@ -626,7 +721,8 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         "unsafe_first": None if not unsafe_cycles else _describe(unsafe_cycles[0], trace, demands, inside),
         "crash": None, "core_exceptions": core_exceptions, "undecodable": receiver.rejected.get("undecodable", 0),
         "collision": collision, "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
-        "false_braking": false_braking, "braked": braked, "entered": started,
+        "false_braking": false_braking, "brake_without_obstacle": without, "braked": braked, "entered": started,
+        "min_speed_mps": round(min_speed, 3), "max_demand": max(demands, default=0),
         "stop_margin_m": None if stop_margin is None else round(stop_margin, 2),
         "rejects": dict(receiver.rejected), "corrupt_frames_accepted": undetected_corrupt,
         "config_error": config_error, "reasons_seen": [REASON_NAMES[b] for b in range(len(REASON_NAMES)) if seen_bits >> b & 1],
@@ -644,14 +740,16 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
 def _describe(i: int, trace, demands, inside) -> dict:
     d = {"cycle": i, "demand": demands[i], "next_demand": demands[i + 1] if i + 1 < len(demands) else None}
     if trace is not None:
-        tick, t, v, dist, _, mode, voted_in, true_in = trace[i]
+        tick, t, v, dist, _, mode, voted_in, true_in, _ = trace[i]
         d.update(tick=tick, t_s=round(t, 2), speed_mps=round(v, 2), true_distance_m=None if dist is None else round(dist, 2),
                  mode=mode, voted_inside=voted_in, true_inside=true_in)
     return d
 
 
-def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receiver) -> Optional[int]:
-    """The first cycle at or after `first` that shows the fault kind's named diagnostic."""
+def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receiver,
+                      persisted: Optional[int] = None) -> Optional[int]:
+    """The first cycle at or after `first` that shows the fault kind's named diagnostic (for a
+    contradiction that persisted `persistence_cycles`, from cycle `persisted`: also perceptor)."""
     n = len(reasons_l)
     if f.kind in ("silence", "stale_timestamp"):
         return next((i for i in range(first, n) if reasons_l[i] & R_STALE), None)
@@ -659,7 +757,12 @@ def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receive
         bit = 1 << (f.channel // 2)
         return next((i for i in range(first, n) if flags_l[i] & bit), None)
     if f.kind == "contradiction":
-        return next((i for i in range(first, n) if reasons_l[i] & R_PERCEPTOR), None)
+        bit = 1 << (f.channel // 2)
+        flag = next((i for i in range(first, n) if flags_l[i] & bit), None)
+        if persisted is None or flag is None:
+            return flag
+        perceptor = next((i for i in range(persisted, n) if reasons_l[i] & R_PERCEPTOR), None)
+        return None if perceptor is None else max(flag, perceptor)
     if f.kind in FRAME_KINDS:
         if receiver.rejected.get(REJECT_OF[f.kind], 0) == 0:
             return None
@@ -669,20 +772,22 @@ def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receive
     return None
 
 
-def _work(specs: list) -> list:
+def _work(job: tuple) -> list:
+    specs, cfg = job
     out = []
     for spec in specs:
-        r = simulate(spec)
+        r = simulate(spec, config=cfg)
         r.pop("trace", None)
         out.append(r)
     return out
 
 
-def run_core(specs: list[RunSpec], progress: Progress, workers: int = 0) -> list[dict]:
-    """Every spec through `simulate`, in parallel processes (order kept)."""
+def run_core(specs: list[RunSpec], progress: Progress, workers: int = 0, config: Optional[Config] = None) -> list[dict]:
+    """Every spec through `simulate` with `config` (default Config()), in parallel processes (order kept)."""
+    cfg = config or Config()
     workers = workers or max(1, min(2, os.cpu_count() or 1))
     chunk = 40
-    chunks = [specs[i:i + chunk] for i in range(0, len(specs), chunk)]
+    chunks = [(specs[i:i + chunk], cfg) for i in range(0, len(specs), chunk)]
     results: list = []
     if workers == 1 or len(chunks) == 1:
         for c in chunks:
@@ -697,6 +802,49 @@ def run_core(specs: list[RunSpec], progress: Progress, workers: int = 0) -> list
             if done % 2000 < chunk:
                 progress(f"campaign: {done:,} of {len(specs):,} core runs ({time.perf_counter() - t0:.0f} s)")
     return results
+
+
+def ghost_plan(quick: bool, cfg: Config) -> list[tuple]:
+    """(spec, faults) of the ghost runs: on a clear track at 40 m/s, one channel reports a
+    static obstacle for GHOST_S at a fixed distance beyond SBI (just beyond, half-way to the
+    warning curve, just beyond the warning curve, far), every channel in turn, with the m1
+    and m2 tables alternating (full mode: both tables)."""
+    scen = GHOST_SCENARIO
+    v = round(scen.speed_mps * 100)
+    c = curves(cfg, v, 0, 0, v, 0)
+    far = int(RANGE_M * 10) - 100
+    distances = sorted({min(x, far) for x in (c.sbi_dm + 1, (c.sbi_dm + c.warning_dm) // 2, c.warning_dm + 1, far)})
+    out = []
+    for ch in range(6):
+        for i, d in enumerate(distances):
+            start = round(2.0 + 0.7 * i + 0.3 * ch, 1)
+            for model in (("m1", "m2")[(i + ch) % 2],) if quick else ("m1", "m2"):
+                spec = RunSpec(("ghost",), scen.name, 100 * ch + i, model)
+                out.append((spec, [Fault("ghost", ch, start, round(start + GHOST_S, 1), (d,))]))
+    return out
+
+
+def run_ghosts(quick: bool, cfg: Optional[Config] = None) -> list[dict]:
+    """The ghost runs through `simulate` (each result also carries the ghost's distance)."""
+    cfg = cfg or Config()
+    out = []
+    for spec, faults in ghost_plan(quick, cfg):
+        r = simulate(spec, config=cfg, faults=faults)
+        r.pop("trace", None)
+        out.append(dict(r, ghost_dm=faults[0].variant[0]))
+    return out
+
+
+def ghost_summary(runs: list[dict]) -> dict:
+    """The ghosts' verdict: the train never stands still, nothing unsafe, and the monitor shows
+    the disagreement (reason bit `dispute`)."""
+    stopped = [r["key"] for r in runs if r["crash"] or not r.get("min_speed_mps")]
+    return {"runs": len(runs), "stopped": stopped, "unsafe": sum(bool(r["unsafe"]) for r in runs),
+            "false_braking": sum(bool(r["false_braking"]) for r in runs),
+            "undiagnosed": [r["key"] for r in runs if "dispute" not in r.get("reasons_seen", ())],
+            "min_speed_mps": min((r.get("min_speed_mps") or 0.0 for r in runs), default=0.0),
+            "max_demand": max((r.get("max_demand") or 0 for r in runs), default=0),
+            "distances_dm": sorted({r["ghost_dm"] for r in runs})}
 
 
 # ----------------------------------------------------------------------------- the bus samples
@@ -718,8 +866,12 @@ class BusSpec:
         return tuple(f.kind for f in self.faults)
 
 
-def bus_scenario(spec: BusSpec):
-    """The world scenario as a can_bus Scenario for the Player (same obstacles, noise, faults)."""
+def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None):
+    """The world scenario as a can_bus Scenario for the Player (same obstacles, noise, faults);
+    its train brakes at the declaration's guaranteed decelerations (the emergency brake at its
+    weakest band), its force ramping up in twice the emergency build-up time (equivalent
+    build-up: dead time + half the ramp)."""
+    cfg = cfg or Config()
     from can_bus.scenario import FaultSpec, ObstacleSpec, Scenario, SensorSpec, TrainSpec, check
 
     w = SCENARIO_BY_NAME[spec.scenario]
@@ -730,7 +882,8 @@ def bus_scenario(spec: BusSpec):
             faults.append(FaultSpec(f.kind, f.channel, float(f.start_s), float(f.end_s), rate))
     scen = Scenario(
         name=spec.name, description=w.description, duration_s=spec.duration_s or w.duration_s,
-        train=TrainSpec(w.speed_mps, SERVICE_MPS2, EMERGENCY_MPS2, BRAKE_DELAY_S),
+        train=TrainSpec(w.speed_mps, cfg.service_decel_mms2 / 1000.0, min(a for _, a in emergency_bands(cfg)) / 1000.0,
+                        2 * cfg.emergency_buildup_ms / 1000.0),
         obstacles=tuple(ObstacleSpec(o.position_m, o.appear_s, o.speed_mps, o.type) for o in w.obstacles),
         sensors=SensorSpec(RANGE_M, NOISE_SIGMA_M, 0.0, spec.seed), faults=tuple(faults))
     check(scen)
@@ -792,7 +945,7 @@ def _counting_core():
     return counter, restore
 
 
-def bus_run(spec: BusSpec) -> dict:
+def bus_run(spec: BusSpec, config: Optional[Config] = None) -> dict:
     """One run on python-can's virtual bus (simulated clock): `can_bus.session.run_virtual`
     for the player's faults; the same loop with a clock that makes cycles finish late for the
     deadline overrun; a refused table leaves the Player alone on the bus."""
@@ -804,11 +957,12 @@ def bus_run(spec: BusSpec) -> dict:
     from can_bus.runner import MonitorRunner
 
     out = {"name": spec.name, "kinds": spec.kinds, "scenario": spec.scenario, "model": spec.model,
-           "detection_run": spec.detection, "crash": None, "unsafe": 0, "collision": False, "false_braking": False}
+           "detection_run": spec.detection, "crash": None, "unsafe": 0, "collision": False, "false_braking": False,
+           "brake_without_obstacle": False}
     counter, restore = _counting_core()
     try:
-        scen = bus_scenario(spec)
-        cfg = Config()
+        cfg = config or Config()
+        scen = bus_scenario(spec, cfg)
         data, expect, run_cfg = shipped_table(spec.model), None, cfg
         for f in spec.faults:
             if f.kind in TABLE_KINDS:
@@ -825,7 +979,7 @@ def bus_run(spec: BusSpec) -> dict:
             finally:
                 bus.shutdown()
             out.update(player.outcome(), entered=player.started, collision=player.collision,
-                       false_braking=True, cycles=len(player.trace), detected={f.kind: True for f in spec.faults})
+                       brake_without_obstacle=True, cycles=len(player.trace), detected={f.kind: True for f in spec.faults})
             return out
         overrun = [f for f in spec.faults if f.kind == "deadline_overrun"]
         with tempfile.TemporaryDirectory(prefix="railguard-campaign-") as tmp:
@@ -857,7 +1011,8 @@ def bus_run(spec: BusSpec) -> dict:
                 finally:
                     for b in buses:
                         b.shutdown()
-        out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None, cfg))
+        out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None, cfg,
+                                spec.scenario))
         out.update(player.outcome(), collision=player.collision, entered=player.started)
         out["rejects"] = dict(runner.receiver.rejected)
         out["deadline_misses"] = runner.deadline_misses
@@ -876,13 +1031,14 @@ def bus_run(spec: BusSpec) -> dict:
     return out
 
 
-def evaluate_bus(records, trace, trace_ticks, cfg: Config) -> dict:
+def evaluate_bus(records, trace, trace_ticks, cfg: Config, scenario: str) -> dict:
     """Unsafe cycles, false braking and the demand history of a run on a bus.
 
     `records` are the runner's CycleRecords; `trace` the player's (t_s, speed_mps,
     distance_m) rows. On the virtual bus row i is the world the reports of cycle i came from;
     on a real bus (`trace_ticks` given) the row of cycle i is the newest one stepped at or
-    before its tick."""
+    before its tick. The obstacle's closing speed for the curves comes from the scenario
+    (its one obstacle's speed; none: a static one)."""
     import bisect
 
     rows = []
@@ -896,26 +1052,29 @@ def evaluate_bus(records, trace, trace_ticks, cfg: Config) -> dict:
     cut = next((i for i, row in enumerate(rows) if row is not None and row[2] is not None and row[2] <= 0), None)
     if cut is not None:                      # a collision: the world ends there, as in the core-level runs
         records, rows = records[:cut], rows[:cut]
-    inside = []
-    false_braking = False
+    obstacle_cms = round(max((o.speed_mps for o in SCENARIO_BY_NAME[scenario].obstacles), default=0.0) * 100)
+    inside, near, moving = [], [], []
     entered = False
     for rec, row in zip(records, rows):
         v_in = MAX_SPEED_CMS if rec.speed_cms is None else rec.speed_cms
-        voted = rec.distance_dm != NO_DISTANCE and rec.distance_dm <= _alpha2(v_in, cfg)
+        voted = rec.distance_dm != NO_DISTANCE and rec.distance_dm <= ebi_dm(cfg, v_in, v_in - obstacle_cms)
         true = False
         if row is not None and row[2] is not None:
-            true = row[2] * 10 <= _alpha2(math.ceil(row[1] * 100), cfg)
+            v_true = math.ceil(row[1] * 100)
+            true = row[2] * 10 <= ebi_dm(cfg, v_true, v_true - obstacle_cms)
         inside.append(voted or true)
-        if row is not None and row[1] > 0:
-            entered = True
-        if entered and rec.demand > 0 and (row is None or row[2] is None or row[2] > RANGE_M):
-            false_braking = True
+        entered = entered or (row is not None and row[1] > 0)
+        moving.append(entered)
+        near.append(row is not None and row[2] is not None and row[2] <= RANGE_M)
     demands = [r.demand for r in records]
+    reasons = [r.reasons for r in records]
     n = len(demands)
     unsafe = unsafe_at(inside, demands)
+    without, false = false_braking_cycles(demands, reasons, near, moving)
+    held = not entered and not any(r & FAULT_REACTION for r in reasons)     # never let go, no diagnosed fault
     return {"cycles": n, "unsafe": len(unsafe), "unsafe_first": None if not unsafe else
             {"cycle": unsafe[0], "tick": records[unsafe[0]].tick, "demand": demands[unsafe[0]], "row": rows[unsafe[0]]},
-            "false_braking": false_braking or not entered}
+            "brake_without_obstacle": without or not entered, "false_braking": false or held}
 
 
 def bus_detection(faults, records, rejected) -> dict:
@@ -936,8 +1095,8 @@ def bus_detection(faults, records, rejected) -> dict:
             ok = bool(seen & R_STALE)
         elif k in ("stuck", "noise_burst", "missed_detection", "stale_timestamp"):
             ok = bool(flags & (1 << (f.channel // 2)))
-        elif k == "contradiction":
-            ok = bool(seen & R_PERCEPTOR)
+        elif k == "contradiction":            # the player's windows outlast persistence_cycles
+            ok = bool(flags & (1 << (f.channel // 2))) and bool(seen & R_PERCEPTOR)
         elif k in FRAME_KINDS:
             ok = rejected.get(REJECT_OF[k], 0) > 0 and bool(seen & R_STALE)
         elif k == "deadline_overrun":
@@ -948,8 +1107,9 @@ def bus_detection(faults, records, rejected) -> dict:
     return out
 
 
-def _bus_work(specs: list) -> list:
-    return [bus_run(s) for s in specs]
+def _bus_work(job: tuple) -> list:
+    specs, cfg = job
+    return [bus_run(s, cfg) for s in specs]
 
 
 # ----------------------------------------------------------------------------- vcan0 in the sandbox
@@ -979,6 +1139,7 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
     from can_bus.codec import Receiver, Sender, database
 
     specs = json.loads(Path(spec_path).read_text())
+    cfg = Config(**specs[0]["config"]) if specs else Config()
     out = Path(out_dir)
     # warm up (parse the DBC, encode and check every message once, build the setups) so that
     # the first session does not start with a cold process, as a deployed monitor would not
@@ -986,7 +1147,7 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
     for msg in database().messages:
         rx.accept(msg.frame_id, tx.frame(msg.frame_id, {}), 0)
     for raw in specs:
-        cycle.create(Config(), shipped_table(raw["model"]))
+        cycle.create(cfg, shipped_table(raw["model"]))
     bus_kwargs = {"interface": "socketcan", "channel": "vcan0"}
     for i, raw in enumerate(specs):
         spec = BusSpec(raw["name"], raw["scenario"], tuple(Fault(*f[:4], tuple(f[4])) for f in raw["faults"]),
@@ -994,8 +1155,8 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
         result = {"name": spec.name}
         counter, restore = _counting_core()
         try:
-            scen = bus_scenario(spec)
-            setup = cycle.create(Config(), shipped_table(spec.model))
+            scen = bus_scenario(spec, cfg)
+            setup = cycle.create(cfg, shipped_table(spec.model))
             clock = WallClock()
             mon_bus, player_bus = can.Bus(**bus_kwargs), can.Bus(**bus_kwargs)
             stop = threading.Event()
@@ -1030,7 +1191,7 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
             n = min(len(steps), len(player.trace))
             result.update(
                 records=[[r.tick, r.demand, r.reasons, r.mode, r.node, r.distance_dm, r.module_flags, r.system_error,
-                          r.speed_cms] for r in runner.records],
+                          r.speed_cms, r.warning] for r in runner.records],
                 trace=[[row.t_s, row.speed_mps, row.distance_m] for row in player.trace[:n]], trace_ticks=steps[:n],
                 outcome=player.outcome(), collision=player.collision, entered=player.started,
                 rejects=dict(runner.receiver.rejected), deadline_misses=runner.deadline_misses,
@@ -1044,8 +1205,9 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
     return 0
 
 
-def vcan_sample(specs: list[BusSpec], progress: Progress) -> dict:
+def vcan_sample(specs: list[BusSpec], progress: Progress, config: Optional[Config] = None) -> dict:
     """Boot the sandbox once and run every session in it; evaluate them on the host."""
+    cfg = config or Config()
     from can_bus import vcan
     from can_bus.runner import CycleRecord
 
@@ -1054,7 +1216,7 @@ def vcan_sample(specs: list[BusSpec], progress: Progress) -> dict:
     with tempfile.TemporaryDirectory(prefix="railguard-campaign-vcan-") as tmp:
         spec_path = Path(tmp) / "sessions.json"
         spec_path.write_text(json.dumps([{"name": s.name, "scenario": s.scenario, "model": s.model, "seed": s.seed,
-                                          "detection": s.detection, "duration_s": s.duration_s,
+                                          "detection": s.detection, "duration_s": s.duration_s, "config": cfg._asdict(),
                                           "faults": [[f.kind, f.channel, f.start_s, f.end_s, list(f.variant)]
                                                      for f in s.faults]} for s in specs]))
         script = Path(tmp) / "sessions.sh"
@@ -1076,7 +1238,7 @@ def vcan_sample(specs: list[BusSpec], progress: Progress) -> dict:
                    "crash": raw.get("error"), "unsafe": 0, "collision": False, "false_braking": False, "detected": {}}
             if "records" in raw:
                 records = [CycleRecord(*r) for r in raw["records"]]
-                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], Config()))
+                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], cfg, spec.scenario))
                 run.update(raw["outcome"], collision=raw["collision"], entered=raw["entered"], rejects=raw["rejects"],
                            deadline_misses=raw["deadline_misses"], frames_received=raw["frames_received"],
                            faults_injected=raw["faults_injected"])
@@ -1106,7 +1268,8 @@ def aggregate(results: list[dict]) -> dict:
     """Counts over core-level runs: totals, per fault kind (single and in pairs), per
     scenario, per (fault kind, scenario), detection per kind."""
     def blank():
-        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "crashes": 0, "collisions": 0, "false_braking": 0}
+        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "crashes": 0, "collisions": 0, "false_braking": 0,
+                "brake_without_obstacle": 0}
 
     def add(cell, r):
         cell["runs"] += 1
@@ -1115,6 +1278,7 @@ def aggregate(results: list[dict]) -> dict:
         cell["crashes"] += r["crash"] is not None
         cell["collisions"] += bool(r["collision"])
         cell["false_braking"] += bool(r["false_braking"])
+        cell["brake_without_obstacle"] += bool(r.get("brake_without_obstacle"))
 
     total = blank()
     single = defaultdict(blank)        # kind ("none" for fault-free) -> counts
@@ -1142,7 +1306,7 @@ def aggregate(results: list[dict]) -> dict:
             for k in set(r["kinds"]):
                 add(paired[k], r)
                 add(cells[("pair:" + k, r["scenario"])], r)
-        if len(r["kinds"]) == 1 and r["faults"]:
+        if len(r["kinds"]) == 1 and r["faults"] and r["faults"][0]["kind"] in detection:
             f = r["faults"][0]
             d = detection[f["kind"]]
             d["single_runs"] += 1
@@ -1162,11 +1326,13 @@ def aggregate(results: list[dict]) -> dict:
                     pair_missed.append(r["key"])
     unsafe_examples = [{"key": r["key"], "first": r["unsafe_first"]} for r in results if r["unsafe"]][:10]
     crash_examples = [{"key": r["key"], "crash": r["crash"]} for r in results if r["crash"]][:10]
-    rate = total["false_braking"] / total["runs"] if total["runs"] else 0.0
+    runs = max(1, total["runs"])
     return {
         "runs": total["runs"], "unsafe": total["unsafe_runs"], "unsafe_cycles": total["unsafe"],
         "crashes": total["crashes"], "collisions": total["collisions"], "false_braking": total["false_braking"],
-        "false_braking_rate": rate, "single": dict(single), "paired": dict(paired), "by_scenario": dict(scen),
+        "false_braking_rate": total["false_braking"] / runs, "brake_without_obstacle": total["brake_without_obstacle"],
+        "brake_without_obstacle_rate": total["brake_without_obstacle"] / runs,
+        "false_braking_examples": [r["key"] for r in results if r["false_braking"]][:10], "single": dict(single), "paired": dict(paired), "by_scenario": dict(scen),
         "by_model": dict(models), "cells": {f"{a}|{b}": v for (a, b), v in cells.items()}, "detection": detection,
         "pairs": {"manifest": pair_manifest, "detected": pair_detected, "missed": pair_missed},
         "unsafe_examples": unsafe_examples, "crash_examples": crash_examples,
@@ -1183,28 +1349,35 @@ def _bus_summary(runs: list[dict]) -> dict:
                 kinds_detected[k] = kinds_detected.get(k, True) and bool(ok)
     n = len(runs)
     fb = sum(bool(r.get("false_braking")) for r in runs)
+    without = sum(bool(r.get("brake_without_obstacle")) for r in runs)
     return {"runs": n, "unsafe": sum(bool(r.get("unsafe")) for r in runs),
             "crashes": sum(r.get("crash") is not None for r in runs),
             "collisions": sum(bool(r.get("collision")) for r in runs),
             "collisions_avoidable": sum(bool(r.get("collision")) and r.get("scenario") != UNAVOIDABLE for r in runs),
-            "false_braking": fb,
-            "false_braking_rate": fb / n if n else 0.0, "detected": kinds_detected,
+            "false_braking": fb, "false_braking_rate": fb / n if n else 0.0, "brake_without_obstacle": without,
+            "brake_without_obstacle_rate": without / n if n else 0.0, "detected": kinds_detected,
             "frames_rejected": dict(sum((Counter(r.get("rejects") or {}) for r in runs), Counter())),
             "unsafe_examples": [{"name": r["name"], "first": r.get("unsafe_first")} for r in runs if r.get("unsafe")][:5],
             "crash_examples": [{"name": r["name"], "crash": r["crash"]} for r in runs if r.get("crash")][:5]}
 
 
-def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = True, workers: int = 0) -> dict:
-    """The whole campaign; returns its summary (see the module docstring)."""
+def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = True, workers: int = 0,
+        config: Optional[Config] = None) -> dict:
+    """The whole campaign with the monitor's `config` (default Config(), the shipped braking
+    declaration; the world's train brakes as it guarantees); returns its summary (see the
+    module docstring)."""
     t0 = time.perf_counter()
+    cfg = config or Config()
     specs = plan(quick)
     progress(f"campaign: {len(specs):,} core-level runs ({len(combos()) - 1} fault combinations x "
              f"{len(SCENARIOS)} scenarios{'' if quick else f' x {SEEDS} seeds'})")
-    results = run_core(specs, progress, workers)
-    core = aggregate(results)
+    results = run_core(specs, progress, workers, cfg)
+    progress("campaign: ghost runs (a 0.3 s ghost on one channel beyond SBI, clear track, 40 m/s)")
+    ghosts = run_ghosts(quick, cfg)
+    core = aggregate(results + ghosts)
     core["seconds"] = time.perf_counter() - t0
     progress(f"campaign: core runs done in {core['seconds']:.0f} s: {core['unsafe']} unsafe, {core['crashes']} crashes")
-    summary = {"mode": "quick" if quick else "full", "core": core}
+    summary = {"mode": "quick" if quick else "full", "core": core, "config": cfg._asdict(), "ghost": ghost_summary(ghosts)}
 
     bus_runs: list = []
     if bus:
@@ -1212,9 +1385,9 @@ def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = 
         bspecs = bus_plan(quick)
         progress(f"campaign: {len(bspecs)} runs through the runner, codec and player on the virtual bus")
         w = workers or max(1, min(2, os.cpu_count() or 1))
-        chunks = [bspecs[i::w] for i in range(w)]
+        chunks = [(bspecs[i::w], cfg) for i in range(w)]
         if w == 1:
-            bus_runs = _bus_work(bspecs)
+            bus_runs = _bus_work((bspecs, cfg))
         else:
             with ProcessPoolExecutor(max_workers=w) as pool:
                 for res in pool.map(_bus_work, chunks):
@@ -1224,7 +1397,7 @@ def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = 
     vruns: list = []
     if vcan_runs:
         try:
-            v = vcan_sample(vcan_plan(quick), progress)
+            v = vcan_sample(vcan_plan(quick), progress, cfg)
             vruns = v["runs"]
             summary["vcan"] = dict(_bus_summary(vruns), seconds=v["seconds"], timed_out=v["timed_out"], runs_detail=vruns_detail(vruns))
         except Exception as exc:  # noqa: BLE001 - SandboxError or an unexpected failure: reported, never a crash of the campaign
@@ -1233,8 +1406,9 @@ def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = 
     summary["unsafe"] = core["unsafe"] + sum(bool(r.get("unsafe")) for r in bus_runs + vruns)
     summary["crashes"] = core["crashes"] + sum(r.get("crash") is not None for r in bus_runs + vruns)
     summary["collisions"] = core["collisions"] + sum(bool(r.get("collision")) for r in bus_runs + vruns)
-    fb = core["false_braking"] + sum(bool(r.get("false_braking")) for r in bus_runs + vruns)
-    summary["false_braking_rate"] = fb / summary["runs"] if summary["runs"] else 0.0
+    for key in ("false_braking", "brake_without_obstacle"):
+        count = core[key] + sum(bool(r.get(key)) for r in bus_runs + vruns)
+        summary[key + "_rate"] = count / summary["runs"] if summary["runs"] else 0.0
     summary["detection"] = {k: core["detection"][k]["manifest"] > 0 and core["detection"][k]["detected"] == core["detection"][k]["manifest"]
                             for k in KINDS}
     summary["readme_table"] = faults_table(core)
@@ -1251,7 +1425,8 @@ def vruns_detail(runs: list[dict]) -> list[dict]:
 def _cell(c: dict) -> str:
     if not c or not c["runs"]:
         return "-"
-    return f"{c['unsafe_runs']}/{c['crashes']}/{c['collisions']}/{100 * c['false_braking'] / c['runs']:.0f}%"
+    return (f"{c['unsafe_runs']}/{c['crashes']}/{c['collisions']}/{100 * c['false_braking'] / c['runs']:.0f}%/"
+            f"{100 * c['brake_without_obstacle'] / c['runs']:.0f}%")
 
 
 def faults_by_scenarios_table(core: dict, pairs: bool = True) -> str:
@@ -1278,23 +1453,28 @@ def faults_table(core: dict) -> str:
         p = core["paired"].get(key)
         det = core["detection"].get(key)
         label = "none (fault-free)" if key == "none" else CATALOGUE[key].label
-        both = {k: (c or {}).get(k, 0) + (p or {}).get(k, 0) for k in ("runs", "unsafe_runs", "crashes", "collisions", "false_braking")}
+        both = {k: (c or {}).get(k, 0) + (p or {}).get(k, 0)
+                for k in ("runs", "unsafe_runs", "crashes", "collisions", "false_braking", "brake_without_obstacle")}
         detected = "-" if det is None else f"{det['detected']}/{det['manifest']}"
         rows.append([label, f"{both['runs']:,}", both["unsafe_runs"], both["crashes"], both["collisions"],
-                     _pct(both["false_braking"] / both["runs"]) if both["runs"] else "-", detected])
+                     _pct(both["false_braking"] / both["runs"]) if both["runs"] else "-",
+                     _pct(both["brake_without_obstacle"] / both["runs"]) if both["runs"] else "-", detected])
     rows.append(["**all runs**", f"{core['runs']:,}", core["unsafe"], core["crashes"], core["collisions"],
-                 _pct(core["false_braking_rate"]), ""])
+                 _pct(core["false_braking_rate"]), _pct(core["brake_without_obstacle_rate"]), ""])
     return md_table(["fault (single or in a pair)", "runs", "unsafe", "crashes", "collisions", "false braking",
-                     "detected (single runs)"], rows)
+                     "braking without an obstacle", "detected (single runs)"], rows)
 
 
-def heatmap(core: dict, path: Path) -> Path:
+def heatmap(core: dict, path: Path, measure: str = "brake_without_obstacle") -> Path:
+    """Faults x scenarios, coloured by the share of runs with `measure` (braking without an
+    obstacle by default: where the fault reactions brake; false braking is in the tables)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
+    what = {"brake_without_obstacle": "braking without an obstacle", "false_braking": "false braking"}[measure]
     rows = [("none", "none")] + [(k, CATALOGUE[k].label) for k in KINDS]
     fig, axes = plt.subplots(1, 2, figsize=(15, 7.5), sharey=True)
     for ax, prefix, title in ((axes[0], "", "single faults"), (axes[1], "pair:", "the fault in a pair")):
@@ -1304,7 +1484,7 @@ def heatmap(core: dict, path: Path) -> Path:
             for j, s in enumerate(SCENARIOS):
                 c = core["cells"].get(f"{k}|{s.name}")
                 if c and c["runs"]:
-                    grid[i, j] = c["false_braking"] / c["runs"]
+                    grid[i, j] = c[measure] / c["runs"]
         im = ax.imshow(grid, vmin=0, vmax=1, cmap="magma_r", aspect="auto")
         for i in range(grid.shape[0]):
             for j in range(grid.shape[1]):
@@ -1312,9 +1492,9 @@ def heatmap(core: dict, path: Path) -> Path:
                     ax.text(j, i, f"{100 * grid[i, j]:.0f}", ha="center", va="center", fontsize=7,
                             color="white" if grid[i, j] > 0.6 else "black")
         ax.set_xticks(range(len(SCENARIOS)), [s.name for s in SCENARIOS], rotation=40, ha="right", fontsize=8)
-        ax.set_title(f"false-braking rate (%): {title}")
+        ax.set_title(f"{what} (% of runs): {title}")
     axes[0].set_yticks(range(len(rows)), [label for _, label in rows], fontsize=8)
-    fig.colorbar(im, ax=axes, shrink=0.7, label="runs with false braking")
+    fig.colorbar(im, ax=axes, shrink=0.7, label=f"runs with {what}")
     fig.suptitle(f"railguard fault campaign: {core['runs']:,} core-level runs, {core['unsafe']} unsafe, "
                  f"{core['crashes']} crashes")
     fig.savefig(path, dpi=110, bbox_inches="tight")
@@ -1339,11 +1519,24 @@ def checks(summary: dict) -> list[Check]:
     out.append(Check(f"campaign: no collision where it was avoidable (every scenario but {UNAVOIDABLE})",
                      sum(avoidable.values()) == 0,
                      f"{sum(avoidable.values())} collisions in {sum(core['by_scenario'][n]['runs'] for n in avoidable):,} runs; "
-                     f"{core['by_scenario'].get(UNAVOIDABLE, {}).get('collisions', 0)} in {UNAVOIDABLE} (object inside alpha2)",
+                     f"{core['by_scenario'].get(UNAVOIDABLE, {}).get('collisions', 0)} in {UNAVOIDABLE} (object inside EBI)",
                      {"by_scenario": avoidable}))
-    none = core["single"].get("none", {"runs": 0, "false_braking": 0})
-    out.append(Check("campaign: fault-free runs never brake without an obstacle", none["runs"] > 0 and none["false_braking"] == 0,
-                     f"{none['false_braking']} of {none['runs']} fault-free runs"))
+    none = core["single"].get("none", {"runs": 0, "brake_without_obstacle": 0})
+    out.append(Check("campaign: fault-free runs never brake without an obstacle",
+                     none["runs"] > 0 and none["brake_without_obstacle"] == 0,
+                     f"{none['brake_without_obstacle']} of {none['runs']} fault-free runs"))
+    out.append(Check(f"campaign: false braking at most {FALSE_BRAKING_LIMIT:.0%} of the core-level runs, none unsafe (issue 11)",
+                     core["runs"] > 0 and core["false_braking_rate"] <= FALSE_BRAKING_LIMIT and core["unsafe"] == 0,
+                     f"{_pct(core['false_braking_rate'])} ({core['false_braking']:,} of {core['runs']:,}), {core['unsafe']} unsafe; "
+                     f"braking without an obstacle, fault reactions included: {_pct(core['brake_without_obstacle_rate'])}",
+                     {"examples": core["false_braking_examples"]}))
+    if "ghost" in summary:
+        g = summary["ghost"]
+        out.append(Check("campaign: a 0.3 s ghost on one channel beyond SBI never stops the train (clear track, 40 m/s)",
+                         g["runs"] > 0 and not g["stopped"] and g["unsafe"] == 0 and not g["undiagnosed"],
+                         f"{g['runs']} runs: lowest speed {g['min_speed_mps']:.1f} m/s, highest demand {g['max_demand']}, "
+                         f"{len(g['stopped'])} stopped, {len(g['undiagnosed'])} without the dispute diagnostic",
+                         {"stopped": g["stopped"], "undiagnosed": g["undiagnosed"]}))
     for k in KINDS:
         d = core["detection"][k]
         ok = d["manifest"] > 0 and d["detected"] == d["manifest"]
@@ -1385,35 +1578,72 @@ def _sandbox_unavailable(error: str) -> bool:
     return error.startswith("SandboxError") and "apt-get" in error
 
 
+def _ghost_and_before(summary: dict) -> str:
+    """The ghost runs, and the quick campaign's figures before the braking curves."""
+    core, g, b = summary["core"], summary.get("ghost"), BEFORE_QUICK
+    out = ""
+    if g:
+        out += (f"**Ghost runs** ({g['runs']}): clear track, 40 m/s, one channel reports a static obstacle for {GHOST_S} s at "
+                f"{', '.join(f'{d / 10:.1f}' for d in g['distances_dm'])} m (just beyond SBI, half-way to the warning "
+                "curve, just beyond it, far), every channel in turn. The disagreement is a dispute: a warning and a "
+                f"diagnostic, not a brake. Lowest speed {g['min_speed_mps']:.1f} m/s, highest demand {g['max_demand']}, "
+                f"{len(g['stopped'])} stopped, {g['false_braking']} braked falsely, {len(g['undiagnosed'])} without the "
+                "`dispute` diagnostic.\n\n")
+    if summary["mode"] == "quick":
+        out += (f"**Before the braking curves** (commit {b['commit']}: nominal alpha2, a 2oo2 disagreement answered by "
+                "`safe_reaction`, every emergency held to standstill; that commit's world, whose train braked at the "
+                f"nominal 1 and 3 m/s^2): the same {b['runs']} quick runs gave false braking in {b['false_braking']} "
+                f"({_pct(b['false_braking'] / b['runs'])}), braking without an obstacle in {b['brake_without_obstacle']} "
+                f"({_pct(b['brake_without_obstacle'] / b['runs'])}), {b['unsafe']} unsafe; {b['ghosts_stopped']} of "
+                f"{b['ghosts']} ghosts stopped the train. Now: {core['false_braking']} ({_pct(core['false_braking_rate'])}) "
+                f"and {core['brake_without_obstacle']} ({_pct(core['brake_without_obstacle_rate'])}).\n")
+    return out
+
+
 def markdown(summary: dict, figure: Optional[str]) -> str:
     core = summary["core"]
     quick = summary["mode"] == "quick"
+    cfg = summary.get("config") or Config()._asdict()
     lines = [
         f"Every single fault and every pair of faults from the catalogue ({len(KINDS)} kinds; "
         f"{len(combos()) - 1} fault combinations: {len(KINDS)} singles and {len(combos()) - 1 - len(KINDS)} pairs, "
-        "two channels with the same channel fault among them; and the fault-free case) crossed with {len(SCENARIOS)} obstacle "
+        f"two channels with the same channel fault among them; and the fault-free case) crossed with {len(SCENARIOS)} obstacle "
         f"scenarios{'' if quick else f' and {SEEDS} seeds'} (channels, windows and variants drawn from each run's seed; "
-        "tables m1 and m2 alternating), through `monitor.core.cycle` in a simulated world: the player's train "
-        f"kinematics (brake build-up {BRAKE_DELAY_S} s, {SERVICE_MPS2:g} and {EMERGENCY_MPS2:g} m/s^2), six channels "
-        f"with {NOISE_SIGMA_M} m Gaussian noise and {RANGE_M:.0f} m range. Frame faults go through the real "
-        "`can_bus.codec.Receiver` with real encoded frames. A sample runs through the real `MonitorRunner`, codec "
-        "and `Player` on the virtual bus, and a few sessions on SocketCAN vcan0 in the user-mode-Linux sandbox.\n",
-        "**Unsafe outcome**: at some cycle a voted obstacle (the monitor's voted distance at the speed it was given) "
-        "or a true obstacle (the world's distance at the true speed, rounded up) at or inside alpha2(v) = "
-        "`braking_distance_dm(v, emergency_decel_mms2, reaction_ms)` while the demand is not emergency at that cycle "
-        "and not at the next one (the last cycle of a run must show it itself). **Crash**: any exception in a run, "
-        "including those the core's fail-safe swallows and those the receive path counts as `undecodable`. "
-        "**False braking**: a brake demand after the train entered while no obstacle is within sensor range, or a "
-        "train held at the entry because the monitor refused to start. `sudden-120m` puts an object inside the "
-        "emergency braking distance: its collisions are physics, not the monitor (no unsafe outcome there).\n",
+        "tables m1 and m2 alternating), plus the ghost runs, through `monitor.core.cycle` in a simulated world: a train "
+        "that brakes as the monitor's braking declaration guarantees at worst, not better (the guaranteed emergency "
+        f"deceleration of its speed band, {cfg['emergency_decel_mms2'] / 1000:g} m/s^2 from 0"
+        + (f" and {cfg['emergency_band2_mms2'] / 1000:g} m/s^2 from {cfg['emergency_band2_cms'] / 100:g} m/s"
+           if cfg["emergency_band2_cms"] else "")
+        + f", the guaranteed service deceleration {cfg['service_decel_mms2'] / 1000:g} m/s^2, each acting its equivalent "
+        f"build-up time after the demand: {cfg['emergency_buildup_ms'] / 1000:g} s and {cfg['service_buildup_ms'] / 1000:g} s "
+        f"of pure dead time; flat track), six channels with {NOISE_SIGMA_M} m Gaussian noise and {RANGE_M:.0f} m range. "
+        "Frame faults go through the real `can_bus.codec.Receiver` with real encoded frames. A sample runs through the "
+        "real `MonitorRunner`, codec and `Player` on the virtual bus (its train: the guaranteed decelerations, the "
+        "emergency one of the weakest band, the force ramping up in twice the emergency build-up), and a few sessions on "
+        "SocketCAN vcan0 in the user-mode-Linux sandbox. `railguard campaign --braking FILE.toml` runs it all with "
+        "another declaration.\n",
+        "**Unsafe outcome**: at some cycle a voted obstacle (the monitor's voted distance at the speed it was given, "
+        "with the closing speed and age of its fresh reports) or a true obstacle (the world's distance at the true "
+        "speed and closing speed, rounded up) at or inside the emergency intervention curve EBI "
+        "(`monitor.core.braking.curves` with the run's configuration, normal track and brakes) while the demand is not "
+        "emergency at that cycle and not at the next one (the last cycle of a run must show it itself). **Crash**: any "
+        "exception in a run, including those the core's fail-safe swallows and those the receive path counts as "
+        "`undecodable`. **False braking** (issue 11's measure): a run with a brake demand, after the train entered, "
+        "while no true obstacle is within sensor range, that is not the reaction to a fault the monitor diagnosed "
+        "(reason bits `stale`, `safe_stop`, `deadline`, `train_input`, `init`, a refused table; an emergency the latch "
+        "still holds after such a reaction counts as the reaction). **Braking without an obstacle** (the earlier "
+        "measure): any such demand, fault reactions and trains held at the entry by a refused table included. "
+        "`sudden-120m` puts an object inside EBI: its collisions are physics, not the monitor.\n",
         f"**Core-level runs**: {core['runs']:,} in {core['seconds']:.0f} s; unsafe {core['unsafe']}, crashes "
-        f"{core['crashes']}, collisions {core['collisions']}, false braking {core['false_braking']:,} "
-        f"({_pct(core['false_braking_rate'])}). Corrupted frames that passed the CRC-8 (multi-byte corruption) "
+        f"{core['crashes']}, collisions {core['collisions']}, **false braking {core['false_braking']:,} "
+        f"({_pct(core['false_braking_rate'])})**, braking without an obstacle {core['brake_without_obstacle']:,} "
+        f"({_pct(core['brake_without_obstacle_rate'])}). Corrupted frames that passed the CRC-8 (multi-byte corruption) "
         f"and were accepted: {core['corrupt_frames_accepted']}. Fault-free stop margins: "
         + ", ".join(f"{m} {a:.1f}..{b:.1f} m" for m, (a, b) in sorted(core["fault_free_stop_margin_m"].items())) + ". "
         + "; ".join(f"Table {m}: {c['runs']:,} runs, {c['unsafe_runs']} unsafe, {c['crashes']} crashes, "
                     f"{c['collisions']} collisions, false braking {_pct(c['false_braking'] / c['runs'])}"
                     for m, c in sorted(core["by_model"].items())) + ".\n",
+        _ghost_and_before(summary),
         "### Catalogue and detection\n",
         md_table(["fault", "how it is injected", "diagnostic that shows it", "single runs: detected / manifested",
                   "max latency (cycles)"],
@@ -1427,24 +1657,25 @@ def markdown(summary: dict, figure: Optional[str]) -> str:
         "table faults always.\n",
         "### Results per fault\n", faults_table(core),
         "\n### Faults x scenarios\n",
-        "Cell: unsafe runs / crashes / collisions / false-braking rate.\n",
+        "Cell: unsafe runs / crashes / collisions / false-braking rate / rate of braking without an obstacle.\n",
         faults_by_scenarios_table(core),
         "\n### Per scenario\n",
-        md_table(["scenario", "description", "runs", "unsafe", "crashes", "collisions", "false braking"],
-                 [[s.name, s.description, f"{core['by_scenario'][s.name]['runs']:,}", core["by_scenario"][s.name]["unsafe_runs"],
-                   core["by_scenario"][s.name]["crashes"], core["by_scenario"][s.name]["collisions"],
-                   _pct(core["by_scenario"][s.name]["false_braking"] / core["by_scenario"][s.name]["runs"])]
-                  for s in SCENARIOS if s.name in core["by_scenario"]]),
+        md_table(["scenario", "description", "runs", "unsafe", "crashes", "collisions", "false braking",
+                  "braking without an obstacle"],
+                 [[s.name, s.description, f"{c['runs']:,}", c["unsafe_runs"], c["crashes"], c["collisions"],
+                   _pct(c["false_braking"] / c["runs"]), _pct(c["brake_without_obstacle"] / c["runs"])]
+                  for s in SCENARIOS + (GHOST_SCENARIO,) if (c := core["by_scenario"].get(s.name))]),
     ]
     if figure:
-        lines.append(f"\n![false-braking rate, faults x scenarios]({figure})\n")
+        lines.append(f"\n![braking without an obstacle, faults x scenarios]({figure})\n")
     if "bus" in summary:
         b = summary["bus"]
         lines += ["\n### Through the real runner and codec on the virtual bus\n",
                   f"{b['runs']} runs of `can_bus.session.run_virtual` (the deadline overrun: the same loop with a clock "
                   "that makes the cycle end 120 ms after its tick; a refused table: the Player alone on the bus) in "
                   f"{b['seconds']:.0f} s: unsafe {b['unsafe']}, crashes {b['crashes']}, collisions {b['collisions']} "
-                  f"({b['collisions_avoidable']} outside {UNAVOIDABLE}), false braking {_pct(b['false_braking_rate'])}. The player's faults are its "
+                  f"({b['collisions_avoidable']} outside {UNAVOIDABLE}), false braking {_pct(b['false_braking_rate'])}, braking "
+                  f"without an obstacle {_pct(b['brake_without_obstacle_rate'])}. The player's faults are its "
                   "own (`can_bus.player`): its `stale_timestamp` replays the report of 10 periods earlier in a fresh "
                   "frame, so on the bus it shows as a 2oo2 disagreement (module flag) rather than as a stale channel; "
                   "runs named `-detect` place each fault while the train approaches a static obstacle in sight and must "
@@ -1474,10 +1705,11 @@ def markdown(summary: dict, figure: Optional[str]) -> str:
     return "\n".join(lines)
 
 
-def section(out_dir, quick: bool, progress: Progress) -> Section:
+def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] = None) -> Section:
+    """The campaign as a report part; `config` (default Config()) carries the braking declaration."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    summary = run(quick, progress)
+    summary = run(quick, progress, config=config)
     fig = heatmap(summary["core"], out / "campaign_false_braking.png")
     (out / "campaign.json").write_text(json.dumps(summary, indent=1, default=str))
     return Section("Fault-injection campaign", markdown(summary, fig.name), checks(summary), [fig.name],

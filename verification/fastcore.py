@@ -1,29 +1,151 @@
 """The monitor core vectorised over many trains at once (numpy), for Monte Carlo runs.
 
 It covers the case the papers simulate: one perception source whose report every channel
-repeats (all six channels fresh, in range and agreeing), so the voters pass the picture
-through and no error rule fires. What remains of a cycle is the integer envelope, the
-zone, the observation, the table step and the emergency latch, computed here with the
-same integer formulas as monitor/core. `agrees_with_core` replays sampled trains through
-the real `monitor.core.cycle.step` and compares every output: the Monte Carlo figures
-are only as good as that check, which `railguard verify` runs every time.
+repeats (all channels fresh, in range and agreeing, the train input valid), so the voters
+pass the picture through and no error rule fires. What remains of a cycle is computed here
+with the same integer formulas as monitor/core, written again on arrays: the braking curves
+of `monitor.core.braking` (EBD, EBI, SBI, warning: every term rounded to the safe side), the
+table's zones under normal conditions, the observation, the table step, the supervision
+ladder (warning, service at SBI, emergency at EBI, held inside SBI), the emergency latch
+with its release (revocable after `release_confirm_cycles` calm cycles, or held to
+standstill) and the reason bits. `agrees_with_core` replays sampled trains through the real
+`monitor.core.cycle.step` and compares every output: the Monte Carlo figures are only as
+good as that check, which `railguard verify` runs every time and tests/test_fastcore.py
+runs on 10,000 random sequences.
 """
 from __future__ import annotations
+
+from typing import NamedTuple, Optional
 
 import numpy as np
 
 from monitor.core import cycle
+from monitor.core.braking import CURVE_CAP_DM
+from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, gradient_accel_mms2
 from monitor.core.types import (
-    ABSENT, EMERGENCY, Inputs, NO_DISTANCE, PRESENT, R_ENVELOPE, R_LATCH, R_TABLE, Report, Train,
+    ABSENT, EMERGENCY, MAINTAIN, NO_DISTANCE, NORMAL, PRESENT, R_ENVELOPE, R_LATCH, R_SBI, R_TABLE, R_WARNING,
+    SERVICE, STATIC, Inputs, Report, Train,
 )
 
+I64 = np.int64
+OUTPUT_KEYS = ("demand", "reasons", "distance_dm", "node", "observation", "warning")
+INPUT_KEYS = ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake", "age_ms")
 
-def braking_distance_dm(speed_cms: np.ndarray, decel_mms2: int, reaction_ms: int) -> np.ndarray:
-    """monitor.core.envelope.braking_distance_dm on arrays (int64, rounded up)."""
-    v = speed_cms.astype(np.int64)
-    num = v * v * 10000 + 2 * decel_mms2 * v * reaction_ms
-    den = 2 * decel_mms2 * 10000
+
+class Curves(NamedTuple):
+    """monitor.core.braking.Curves with an array in each field."""
+
+    ebd_dm: np.ndarray
+    ebi_dm: np.ndarray
+    sbi_dm: np.ndarray
+    warning_dm: np.ndarray
+
+
+def _ceil_div(num: np.ndarray, den) -> np.ndarray:
     return -(-num // den)
+
+
+def run_dm(speed_cms, accel_mms2, time_ms) -> np.ndarray:
+    """braking.run_dm on arrays: v t + a t^2 / 2 in dm, rounded up."""
+    return _ceil_div(2 * speed_cms * time_ms * 10000 + accel_mms2 * time_ms * time_ms, 200000000)
+
+
+def speed_after_cms(speed_cms, accel_mms2, time_ms) -> np.ndarray:
+    """braking.speed_after_cms on arrays: v + a t, rounded up."""
+    return speed_cms + _ceil_div(accel_mms2 * time_ms, 10000)
+
+
+def band_stop(speed_cms, lo_cms: int, hi_cms: int, decel_mms2) -> tuple[np.ndarray, np.ndarray]:
+    """braking.band_stop on arrays: (dm, ms) braking through [lo, hi) below the speed."""
+    top = speed_cms if hi_cms < 0 else np.minimum(speed_cms, hi_cms)
+    inside = top > lo_cms
+    dist = _ceil_div(top * top - lo_cms * lo_cms, 2 * decel_mms2)
+    time = _ceil_div((top - lo_cms) * 10000, decel_mms2)
+    return np.where(inside, dist, 0), np.where(inside, time, 0)
+
+
+def effective_decel(cfg: Config, decel_mms2: int, track, brake, gradient_mms2: int) -> np.ndarray:
+    """braking.effective_decel_mms2 on arrays: the factors of the reported conditions, less the downhill pull."""
+    a = np.where(track != 0, decel_mms2 * cfg.slippery_permille // 1000, decel_mms2)
+    a = np.where(brake != 0, a * cfg.degraded_permille // 1000, a)
+    return a - gradient_mms2
+
+
+def obstacle_run_dm(obstacle_cms, time_ms) -> np.ndarray:
+    """braking.obstacle_run_dm on arrays: what an oncoming obstacle closes, rounded up."""
+    return np.where(obstacle_cms > 0, _ceil_div(obstacle_cms * time_ms, 10000), 0)
+
+
+def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: bool = False) -> Curves:
+    """monitor.core.braking.curves on int64 arrays (one element per train)."""
+    v = np.asarray(speed_cms, dtype=I64)
+    track, brake = np.asarray(track, dtype=I64), np.asarray(brake, dtype=I64)
+    closing, age = np.asarray(closing_cms, dtype=I64), np.asarray(age_ms, dtype=I64)
+    e = cfg.speed_error_permille
+    v_max = _ceil_div(v * (1000 + e), 1000)
+    v_min = v * (1000 - e) // 1000
+    obstacle = closing - v_min
+    g = gradient_accel_mms2(cfg.max_gradient_permille)
+    raw = ((0, cfg.service_decel_mms2),) if service else emergency_bands(cfg)
+    buildup = cfg.service_buildup_ms if service else cfg.emergency_buildup_ms
+    bands = [(lo, effective_decel(cfg, a, track, brake, g)) for lo, a in raw]
+    t1 = age + cfg.period_ms + cfg.traction_cutoff_ms
+    a1 = cfg.max_accel_mms2 + g
+    s1, v1 = run_dm(v_max, a1, t1), speed_after_cms(v_max, a1, t1)
+    t2 = max(buildup - cfg.traction_cutoff_ms, 0)
+    s2, v2 = run_dm(v1, g, t2), speed_after_cms(v1, g, t2)
+    s3, t3 = _stop(v2, bands)
+    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle, t1 + t2 + t3)
+    ebd_dist, ebd_time = _stop(v, bands)
+    ebd = ebd_dist + cfg.standstill_margin_dm + obstacle_run_dm(obstacle, ebd_time)
+    lead = v_max + np.maximum(obstacle, 0)
+    sbi = ebi + run_dm(lead, 0, cfg.service_buildup_ms)
+    warning = sbi + run_dm(lead, 0, cfg.warning_ms)
+    return Curves(*(np.minimum(x, CURVE_CAP_DM) for x in (ebd, ebi, sbi, warning)))
+
+
+def _stop(speed_cms, bands: list) -> tuple[np.ndarray, np.ndarray]:
+    """braking.stop_dm_ms on arrays: bands are (from_cms, decel array) lowest first."""
+    dist = np.zeros_like(speed_cms)
+    time = np.zeros_like(speed_cms)
+    for i, (lo, a) in enumerate(bands):
+        hi = bands[i + 1][0] if i + 1 < len(bands) else -1
+        d, t = band_stop(speed_cms, lo, hi, a)
+        dist, time = dist + d, time + t
+    return dist, time
+
+
+def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms) -> tuple[np.ndarray, np.ndarray]:
+    """(alpha1, alpha2) of the table's zones as the core cuts them: alpha2 = EBI under normal
+    conditions, alpha1 = the service curve's EBI under normal conditions, at least alpha2."""
+    zero = np.zeros_like(np.asarray(speed_cms, dtype=I64))
+    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms).ebi_dm
+    alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True).ebi_dm
+    return np.maximum(alpha1, alpha2), alpha2
+
+
+def zone_of(distance_dm, alpha1_dm, alpha2_dm, warning_dm: int) -> np.ndarray:
+    """envelope.zone on arrays: 0 free, 1 warning, 2 emergency, 3 critical (seed 000 eq. 3)."""
+    return np.where(distance_dm <= alpha2_dm, 3, np.where(distance_dm <= alpha1_dm, 2,
+                                                          np.where(distance_dm <= alpha1_dm + warning_dm, 1, 0)))
+
+
+def supervision(present, distance_dm, c: Curves, held) -> tuple[np.ndarray, np.ndarray]:
+    """envelope.supervision_demand on arrays: (demand, warning)."""
+    emergency = present & ((distance_dm <= c.ebi_dm) | (held & (distance_dm <= c.sbi_dm)))
+    service = present & (distance_dm <= c.sbi_dm)
+    demand = np.where(emergency, EMERGENCY, np.where(service, SERVICE, MAINTAIN))
+    return demand, present & (distance_dm <= c.warning_dm)
+
+
+def latch(latched, calm, demand, speed_cms, revocable: bool, confirm: int):
+    """envelope.latch on arrays: (latched, calm, demand sent)."""
+    held = (latched | (demand == EMERGENCY)) & (speed_cms > 0)
+    calm = np.where(held & (demand != EMERGENCY), calm + 1, 0)
+    if revocable:
+        release = held & (calm >= confirm)
+        held, calm = held & ~release, np.where(release, 0, calm)
+    return held, calm, np.where(held, EMERGENCY, demand)
 
 
 class VectorMonitor:
@@ -32,75 +154,119 @@ class VectorMonitor:
     def __init__(self, setup: cycle.Setup, n: int):
         self.setup = setup
         self.cfg = setup.config
-        self.action = np.asarray(setup.action, dtype=np.int64)
-        self.next = np.asarray(setup.next, dtype=np.int64)
-        self.node = np.full(n, setup.table.start, dtype=np.int64)
+        self.action = np.asarray(setup.action, dtype=I64)
+        self.next = np.asarray(setup.next, dtype=I64)
+        self.node = np.full(n, setup.table.start, dtype=I64)
         self.latched = np.zeros(n, dtype=bool)
+        self.calm = np.zeros(n, dtype=I64)
         self.m2 = setup.model == "m2"
 
     def step(self, present: np.ndarray, distance_dm: np.ndarray, speed_cms: np.ndarray,
-             closing_cms: np.ndarray | None = None, obstacle: np.ndarray | None = None,
-             track: np.ndarray | None = None, brake: np.ndarray | None = None) -> dict:
-        """One cycle for all trains; returns demand, observation, node, reasons, distance."""
+             closing_cms: Optional[np.ndarray] = None, obstacle: Optional[np.ndarray] = None,
+             track: Optional[np.ndarray] = None, brake: Optional[np.ndarray] = None,
+             age_ms: Optional[np.ndarray] = None) -> dict:
+        """One cycle for all trains. closing_cms None: the train's speed (a static obstacle);
+        obstacle, track, brake, age_ms None: 0. Returns the outputs (demand, reasons,
+        observation, node, distance_dm, warning) and the curves and zones used."""
         cfg = self.cfg
-        n = present.shape[0]
-        zeros = np.zeros(n, dtype=np.int64)
-        dist = np.where(present, distance_dm, NO_DISTANCE).astype(np.int64)
-        alpha1 = braking_distance_dm(speed_cms, cfg.service_decel_mms2, cfg.reaction_ms)
-        alpha2 = braking_distance_dm(speed_cms, cfg.emergency_decel_mms2, cfg.reaction_ms)
-        env = present & (dist <= alpha2)
-        zone = np.where(dist <= alpha2, 3, np.where(dist <= alpha1, 2, np.where(dist <= alpha1 + cfg.warning_margin_dm, 1, 0)))
-        zone = np.where(present, zone, 0)
+        present = np.asarray(present, dtype=bool)
+        speed = np.asarray(speed_cms, dtype=I64)
+        zeros = np.zeros(present.shape[0], dtype=I64)
+        track = zeros if track is None else np.asarray(track, dtype=I64)
+        brake = zeros if brake is None else np.asarray(brake, dtype=I64)
+        age = zeros if age_ms is None else np.where(present, age_ms, 0)
+        dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
+        toward = speed if closing_cms is None else np.where(present, closing_cms, speed).astype(I64)
+        c = curves(cfg, speed, track, brake, toward, age)
+        env, warn = supervision(present, dist, c, self.latched)
+        alpha1, alpha2 = zone_alphas(cfg, speed, toward, age)
+        zone = np.where(present, zone_of(dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         if self.m2:
-            closing = np.where(present, zeros if closing_cms is None else closing_cms, speed_cms)
-            spd = np.where(closing < 0, 0, np.where(closing < cfg.fast_closing_cms, 1, 2))
-            obst = np.where(present, zeros if obstacle is None else obstacle, 0)
-            trk = zeros if track is None else track
-            brk = zeros if brake is None else brake
-            obs = (((zone * 3 + spd) * 3 + obst) * 2 + trk) * 2 + brk
+            spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
+            obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
+            obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake
         else:
             obs = zone
         self.node = self.next[self.node, obs]
         table = self.action[self.node]
-        demand = np.maximum(table, np.where(env, EMERGENCY, 0))
-        held = (self.latched | (demand == EMERGENCY)) & (speed_cms > 0)
-        reasons = np.where(table > 0, R_TABLE, 0) | np.where(env, R_ENVELOPE, 0) | np.where(held & self.latched, R_LATCH, 0)
-        self.latched = held
-        final = np.where(held, EMERGENCY, demand)
-        return {"demand": final, "observation": obs, "node": self.node.copy(), "reasons": reasons, "distance_dm": dist}
+        demand = np.maximum(table, env)
+        was = self.latched
+        self.latched, self.calm, final = latch(was, self.calm, demand, speed,
+                                               cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
+        reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
+                   | np.where(env == SERVICE, R_SBI, 0) | np.where(self.latched & was & (demand != EMERGENCY), R_LATCH, 0)
+                   | np.where(warn, R_WARNING, 0))
+        return {"demand": final, "reasons": reasons, "observation": obs, "node": self.node.copy(), "distance_dm": dist,
+                "warning": warn, "table": table, "curves": c, "alpha1_dm": alpha1, "alpha2_dm": alpha2}
+
+
+def twin_trace(setup: cycle.Setup, inputs: dict) -> dict:
+    """Run VectorMonitor over (steps, trains) input arrays (INPUT_KEYS; missing ones are
+    their defaults) and return the inputs with the outputs (OUTPUT_KEYS), all (steps, trains)."""
+    present = np.asarray(inputs["present"], dtype=bool)
+    steps, n = present.shape
+    vm = VectorMonitor(setup, n)
+    trace = {k: np.asarray(v) for k, v in inputs.items() if v is not None}
+    for key in OUTPUT_KEYS:
+        trace["out_" + key] = np.zeros((steps, n), dtype=bool if key == "warning" else I64)
+    for k in range(steps):
+        out = vm.step(*(None if inputs.get(key) is None else np.asarray(inputs[key])[k] for key in INPUT_KEYS))
+        for key in OUTPUT_KEYS:
+            trace["out_" + key][k] = out[key]
+    return trace
 
 
 def core_outputs(setup: cycle.Setup, present, distance_dm, speed_cms, closing_cms=None, obstacle=None,
-                 track=None, brake=None) -> list:
-    """The real core over one train's sequence (arrays over time), all six channels alike."""
+                 track=None, brake=None, age_ms=None) -> list:
+    """The real core over one train's sequence (arrays over time), all channels alike; the
+    same defaults as VectorMonitor.step (closing: the train's speed; the rest 0)."""
     state = cycle.initial_state(setup)
+    period = setup.config.period_ms
     outs = []
     for k in range(len(present)):
-        tick = k * setup.config.period_ms
+        tick = k * period
         p = bool(present[k])
+        speed = int(speed_cms[k])
+        age = int(age_ms[k]) if (p and age_ms is not None) else 0
         rep = Report(PRESENT if p else ABSENT, int(distance_dm[k]) if p else 0,
-                     int(closing_cms[k]) if (p and closing_cms is not None) else 0,
-                     int(obstacle[k]) if (p and obstacle is not None) else 0, tick)
-        train = Train(int(speed_cms[k]), 0 if track is None else int(track[k]), 0 if brake is None else int(brake[k]))
+                     (speed if closing_cms is None else int(closing_cms[k])) if p else 0,
+                     int(obstacle[k]) if (p and obstacle is not None) else STATIC, tick - age)
+        train = Train(speed, 0 if track is None else int(track[k]), 0 if brake is None else int(brake[k]))
         state, out = cycle.step(setup, state, Inputs((rep,) * setup.config.channels, train), tick)
         outs.append(out)
     return outs
 
 
-def agrees_with_core(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[bool, int]:
-    """Replay the first `trains` trains of a recorded Monte Carlo trace through the real
-    core; (all equal, cycles compared). `trace` holds (time, train) arrays of the inputs
-    (present, distance_dm, speed_cms and, for m2, closing_cms, obstacle, track, brake) and
-    of the outputs (demand, observation, node)."""
+def _twin_column(trace: dict, key: str, i: int) -> Optional[np.ndarray]:
+    """Train i's twin output `key`: `out_<key>` (twin_trace) or `<key>` (the seed worlds'
+    traces, where `distance_dm` is the input)."""
+    if "out_" + key in trace:
+        return trace["out_" + key][:, i]
+    return trace[key][:, i] if key in trace and key != "distance_dm" else None
+
+
+def first_mismatch(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[Optional[dict], int]:
+    """Replay the first `trains` trains of a trace (inputs INPUT_KEYS, twin outputs as
+    twin_trace or the seed worlds write them) through the real core; (the first difference
+    or None, cycles compared). Every cycle must also be NORMAL with no flag or error: the
+    case the twin covers."""
     compared = 0
     for i in range(min(trains, trace["present"].shape[1])):
-        col = {k: (None if v is None else v[:, i]) for k, v in trace.items()}
-        outs = core_outputs(setup, col["present"], col["distance_dm"], col["speed_cms"], col.get("closing_cms"),
-                            col.get("obstacle"), col.get("track"), col.get("brake"))
+        inp = {k: (trace[k][:, i] if k in trace else None) for k in INPUT_KEYS}
+        outs = core_outputs(setup, *(inp[k] for k in INPUT_KEYS))
+        twin = {k: c for k in OUTPUT_KEYS if (c := _twin_column(trace, k, i)) is not None}
         for k, out in enumerate(outs):
-            if (out.demand, out.observation, out.node) != (col["demand"][k], col["observation"][k], col["node"][k]):
-                return False, compared
-            if out.mode != 1:     # NORMAL throughout: the vector model assumes no error rule fires
-                return False, compared
+            voted = int(inp["distance_dm"][k]) if inp["present"][k] else NO_DISTANCE
+            for key, value in (("distance_dm", voted), *((key, c[k]) for key, c in twin.items())):
+                if getattr(out, key) != value:
+                    return {"train": i, "cycle": k, "field": key, "core": getattr(out, key), "twin": value}, compared
+            if out.mode != NORMAL or out.module_flags or out.system_error or out.error_cycles:
+                return {"train": i, "cycle": k, "field": "mode", "core": out, "twin": "NORMAL, no error"}, compared
             compared += 1
-    return True, compared
+    return None, compared
+
+
+def agrees_with_core(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[bool, int]:
+    """(all equal, cycles compared) of first_mismatch."""
+    bad, compared = first_mismatch(setup, trace, trains)
+    return bad is None, compared
