@@ -150,18 +150,18 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     # 4. braking curves at the measured speed (docs/supervision.md), under the reported
     #    conditions for the supervision and under normal ones for the table's zones
-    speed, track, brake, train_ok = _train(inputs.train)
-    present = distance != NO_DISTANCE
-    toward = speed if closing is None else closing
-    curve = curves(cfg, speed, track, brake, toward, age)
-    env, warn = supervision_demand(present, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
-
+    #    (computed only with a voted obstacle: without one the ladder asks for nothing)
     # 5. observation
-    if present:
+    speed, track, brake, train_ok = _train(inputs.train)
+    toward = speed if closing is None else closing
+    if distance != NO_DISTANCE:
+        curve = curves(cfg, speed, track, brake, toward, age)
+        env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
         alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age) if (track or brake) else curve.ebi_dm
         alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
         z = zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
     else:
+        env, warn = MAINTAIN, False
         z = 3 if sys_status == DEGRADED else 0
     if setup.model == "m1":
         obs = z
