@@ -3,6 +3,7 @@ when the monitor and the player share an in-process bus and should run as fast a
 CPU allows. The core never sees either: it gets integer ticks."""
 from __future__ import annotations
 
+import math
 import time
 
 
@@ -13,6 +14,14 @@ class WallClock:
 
     def __init__(self) -> None:
         self._t0 = time.monotonic_ns()
+        self._wall0 = time.time()
+
+    def tick_of_stamp(self, stamp) -> int | None:
+        """The tick of a frame's receive timestamp (python-can: seconds of the epoch, from the
+        kernel on SocketCAN), rounded down: a frame that waited in a queue is that much older."""
+        if not stamp:
+            return None
+        return math.floor((stamp - self._wall0) * 1000)
 
     def now_ms(self) -> int:
         return (time.monotonic_ns() - self._t0) // 1_000_000
@@ -36,6 +45,10 @@ class SimClock:
 
     def now_ms(self) -> int:
         return self._ms
+
+    def tick_of_stamp(self, stamp) -> None:
+        """Bus timestamps are wall time, not simulated time: the arrival tick alone counts."""
+        return None
 
     def now_s(self) -> float:
         return self._ms / 1000

@@ -11,6 +11,7 @@ freshness rule ages it into DEGRADED.
 from __future__ import annotations
 
 from collections import Counter as Tally
+from collections import deque
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
@@ -31,6 +32,8 @@ INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor read
 
 REJECT_REASONS = ("unknown_id", "wrong_length", "bad_crc", "repeated_counter", "counter_jump",
                   "out_of_range", "rate_exceeded", "undecodable")
+# refused before the codec sees the frame (can_bus/frames.py, runner.MonitorCore)
+SHELL_REJECT_REASONS = ("fd_frame", "remote_frame", "error_frame", "foreign_output", "receive_error")
 BABBLE_QUARANTINE_MS = 500   # a babbling sender is ignored this long after its last excess frame
 MAX_FRAMES_PER_WINDOW = 3    # more frames than this from one sender within one period: babbling
 
@@ -68,7 +71,7 @@ def report_signals(report: Report, channel: int) -> dict:
 @dataclass
 class SenderState:
     counter: Optional[int] = None
-    recent: list = field(default_factory=list)   # ticks of its frames within the rate window
+    recent: deque = field(default_factory=lambda: deque(maxlen=MAX_FRAMES_PER_WINDOW + 1))  # its newest ticks
     quarantine_until: Optional[int] = None   # babbling: its frames are refused until this tick
 
 
@@ -85,7 +88,9 @@ class Receiver:
     BABBLE_QUARANTINE_MS after its last excess frame: its frames are refused and, for an
     obstacle channel, its latched report is withdrawn, so the core sees the channel as
     DEGRADED (never heard from) and brakes to the safe side. Ordinary jitter (two frames
-    of one period close together) stays well under the limit.
+    of one period close together) stays well under the limit. The policing counts every
+    frame on the ID, valid or not, and comes before the length, CRC and decoding, in
+    constant time per frame: a flood costs the receive path a dictionary lookup per frame.
     """
 
     channels: int = 6
@@ -123,12 +128,29 @@ class Receiver:
             self._reject("undecodable")
             return None
 
+    def _babbling(self, frame_id: int, state: SenderState, tick: int) -> bool:
+        """Count this frame against its sender; True while the sender is quarantined."""
+        state.recent.append(tick)
+        excess = len(state.recent) > MAX_FRAMES_PER_WINDOW and 0 <= tick - state.recent[0] < self.rate_window_ms
+        if excess:
+            state.quarantine_until = tick + BABBLE_QUARANTINE_MS
+        if excess or (state.quarantine_until is not None and tick < state.quarantine_until):
+            if frame_id in OBSTACLE_IDS and frame_id - OBSTACLE_IDS[0] < self.channels:
+                self.reports[frame_id - OBSTACLE_IDS[0]] = None
+            return True
+        return False
+
     def _accept(self, frame_id: int, data: bytes, tick: int) -> Optional[str]:
         db = database()
         try:
             msg = db.get_message_by_frame_id(frame_id)
         except KeyError:
             self._reject("unknown_id")
+            return None
+        state = self.senders.setdefault(frame_id, SenderState())
+        if self.rate_window_ms > 0 and frame_id in INPUT_IDS and self._babbling(frame_id, state, tick):
+            state.counter = None                 # the stream is broken: resynchronise afterwards
+            self._reject("rate_exceeded")
             return None
         if len(data) != FRAME_LENGTH:
             self._reject("wrong_length")
@@ -137,18 +159,6 @@ class Receiver:
             self._reject("bad_crc")
             return None
         counter = data[1] & 0xF
-        state = self.senders.setdefault(frame_id, SenderState())
-        if self.rate_window_ms > 0 and frame_id in INPUT_IDS:
-            state.recent = [t for t in state.recent if 0 <= tick - t < self.rate_window_ms] + [tick]
-            quarantined = state.quarantine_until is not None and tick < state.quarantine_until
-            if quarantined or len(state.recent) > MAX_FRAMES_PER_WINDOW:
-                if len(state.recent) > MAX_FRAMES_PER_WINDOW:
-                    state.quarantine_until = tick + BABBLE_QUARANTINE_MS
-                state.counter = counter
-                if frame_id in OBSTACLE_IDS and frame_id - OBSTACLE_IDS[0] < self.channels:
-                    self.reports[frame_id - OBSTACLE_IDS[0]] = None
-                self._reject("rate_exceeded")
-                return None
         if state.counter is not None:
             delta = (counter - state.counter) & 0xF
             if delta == 0:

@@ -5,18 +5,31 @@ channel with the tick it arrived, the newest TrainState (None once it is older t
 channel timeout, which the core reads as a train-input error), and the number of
 consecutive deadline overruns; then it sends BrakeDemand and MonitorStatus. A cycle that
 ends after its deadline is an overrun; `max_overruns` in a row put the core in SAFE_STOP.
+
+The receive path and the core step live in `MonitorCore`, which knows no bus and no
+clock: the live runner feeds it frames from the bus, `railguard replay` frames from a log,
+so that both decide the same on the same traffic. The runner's drain is bounded by the
+cycle's deadline after every frame, the kernel (SocketCAN) or `frames.monitored` drops
+what the monitor does not read, and per-ID policing refuses a babbling sender before any
+decoding: at any arrival rate the BrakeDemand frame leaves every cycle.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import can
+from cantools.autosar.end_to_end import check_profile2_crc
 
 from monitor.core import cycle as core
-from monitor.core.types import EMERGENCY, NO_DISTANCE, R_SAFE_STOP, Inputs, Outputs
+from monitor.core.types import EMERGENCY, NO_DISTANCE, R_PERCEPTOR, R_SAFE_STOP, R_STALE, Inputs, Outputs
 
-from .codec import BRAKE_DEMAND_ID, MONITOR_STATUS_ID, Receiver, Sender
+from . import frames
+from .codec import BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, Receiver, Sender, data_id
+
+FOREIGN_HOLD_CYCLES = 10   # ForeignOutput stays set this many cycles after the last foreign frame
+SEND_RETRY_S = 0.005       # a full transmit queue is retried this long, then counted as a failure
 
 
 @dataclass
@@ -33,6 +46,99 @@ class CycleRecord:
     system_error: bool
     speed_cms: Optional[int]
     warning: bool = False
+    foreign_output: bool = False     # another sender used the monitor's output IDs lately
+
+
+@dataclass
+class OwnStream:
+    """The recorded monitor's frames on one output ID (replay): E2E counter and tick."""
+
+    counter: int
+    tick: int
+
+
+@dataclass
+class MonitorCore:
+    """Receive path, core step and output diagnostics, without bus or clock.
+
+    `ingest(msg, tick)` takes one frame as it arrived: it is counted by kind (`frames`),
+    dropped if the receive filter would not deliver it (`filtered`), refused if it is not
+    a classical data frame (`fd_frame`, `remote_frame`, `error_frame`; error frames also
+    update the bus state), counted as `foreign_output` if it is on the monitor's own
+    output IDs and not the monitor's, else handed to the codec's Receiver.
+    `decide(tick, overruns)` steps the core.
+
+    Live, the monitor never receives its own frames, so every frame on an output ID is
+    foreign. A log (`recorded_outputs=True`) holds the recorded monitor's own frames: on
+    each output ID the one stream with valid CRC and alive counter stepping by one is the
+    monitor's (a stream silent for ten periods may restart); every other frame there is
+    foreign. A foreign frame that happens to continue the counter is taken for the
+    monitor's and the monitor's next frame is then counted instead: the count is right,
+    only the blame may fall on the other frame.
+    """
+
+    setup: core.Setup
+    recorded_outputs: bool = False
+    receiver: Receiver = field(init=False)
+    tally: frames.FrameTally = field(default_factory=frames.FrameTally)
+    recorded_demands: list = field(default_factory=list)     # (tick, level) of the recorded monitor
+    foreign_until: int = -1
+
+    def __post_init__(self) -> None:
+        cfg = self.setup.config
+        self.receiver = Receiver(channels=cfg.channels, rate_window_ms=cfg.period_ms)
+        self.state = core.initial_state(self.setup)
+        self.period = cfg.period_ms
+        self.own: dict = {}
+        self.outputs: Optional[Outputs] = None
+
+    @property
+    def rejected(self):
+        return self.receiver.rejected
+
+    def ingest(self, msg: can.Message, tick: int) -> Optional[str]:
+        """Take one frame that arrived at `tick`; return the message name if accepted."""
+        kind = self.tally.count(msg)
+        if not frames.monitored(msg):
+            self.tally.filtered += 1
+            return None
+        if kind != "classical":
+            self.receiver.rejected[f"{kind}_frame"] += 1
+            return None
+        fid = msg.arbitration_id
+        data = bytes(msg.data)
+        if fid in frames.OUTPUT_IDS:
+            if not self._own_output(fid, data, tick):
+                self.receiver.rejected["foreign_output"] += 1
+                self.foreign_until = tick + FOREIGN_HOLD_CYCLES * self.period
+            return None
+        return self.receiver.accept(fid, data, tick, False)
+
+    def _own_output(self, fid: int, data: bytes, tick: int) -> bool:
+        if not self.recorded_outputs or len(data) != FRAME_LENGTH or not check_profile2_crc(data, data_id(fid)):
+            return False
+        counter = data[1] & 0xF
+        last = self.own.get(fid)
+        if last is not None and tick - last.tick <= 10 * self.period:
+            if (counter - last.counter) & 0xF != 1:
+                return False
+        self.own[fid] = OwnStream(counter, tick)
+        if fid == BRAKE_DEMAND_ID:
+            self.recorded_demands.append((tick, (data[1] >> 4) & 0x3))
+        return True
+
+    def decide(self, tick: int, overruns: int = 0) -> tuple[Outputs, "CycleRecord"]:
+        """Step the core at `tick` with what has arrived; return its outputs and the record."""
+        rx = self.receiver
+        train = rx.train
+        if rx.train_tick is None or tick - rx.train_tick > self.setup.timeout_ticks:
+            train = None
+        self.state, out = core.step(self.setup, self.state, Inputs(tuple(rx.reports), train, overruns), tick)
+        self.outputs = out
+        rec = CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
+                          out.module_flags, out.system_error, None if train is None else train.speed_cms,
+                          out.warning, tick <= self.foreign_until)
+        return out, rec
 
 
 @dataclass
@@ -41,7 +147,7 @@ class MonitorRunner:
     setup: core.Setup
     clock: object
     on_cycle: Optional[Callable[[CycleRecord], None]] = None
-    receiver: Receiver = field(init=False)
+    monitor: MonitorCore = field(init=False)
     sender: Sender = field(default_factory=Sender)
     records: list = field(default_factory=list)
     overruns: int = 0            # consecutive
@@ -49,45 +155,65 @@ class MonitorRunner:
     frames_received: int = 0
     frames_sent: int = 0
     send_failures: int = 0
+    max_send_gap_ms: int = 0     # largest gap between two BrakeDemand sends (wall clock; 0 when simulated)
 
     def __post_init__(self) -> None:
-        self.receiver = Receiver(channels=self.setup.config.channels, rate_window_ms=self.setup.config.period_ms)
-        self.state = core.initial_state(self.setup)
+        self.monitor = MonitorCore(self.setup)
         self.period = self.setup.config.period_ms
         self.next_tick = self.clock.now_ms()
         self.table_hash = int(self.setup.table.sha256[:3], 16)
+        self.last_send_ms: Optional[int] = None
+        self._stamp_tick = getattr(self.clock, "tick_of_stamp", None)
+
+    @property
+    def receiver(self) -> Receiver:
+        return self.monitor.receiver
+
+    @property
+    def state(self):
+        return self.monitor.state
+
+    @property
+    def outputs(self) -> Optional[Outputs]:
+        """The core's outputs of the last cycle."""
+        return self.monitor.outputs
 
     # ------------------------------------------------------------------ receive
     def drain(self, until_ms: Optional[int] = None) -> None:
-        """Accept frames until the clock reaches `until_ms` (simulated clock: until the bus is empty)."""
+        """Accept frames until the clock reaches `until_ms` (simulated clock: until the bus is
+        empty). The deadline is checked after every frame, so a flood cannot hold the cycle."""
         while True:
             if self.clock.simulated or until_ms is None:
                 timeout = 0.0
             else:
-                timeout = max(0.0, (until_ms - self.clock.now_ms()) / 1000)
-            msg = self.bus.recv(timeout=timeout)
+                timeout = (until_ms - self.clock.now_ms()) / 1000
+                if timeout <= 0:
+                    return
+            try:
+                msg = self.bus.recv(timeout=timeout)
+            except can.CanError:
+                self.monitor.rejected["receive_error"] += 1
+                return
             if msg is None:
                 if self.clock.simulated or until_ms is None or self.clock.now_ms() >= until_ms:
                     return
                 continue
             self.frames_received += 1
-            if msg.is_error_frame or msg.is_remote_frame:
-                self.receiver.rejected["error_or_remote_frame"] += 1
-                continue
             # after an overrun the clock is past the next cycle's tick: a frame is stamped no later
-            # than that tick, never in the cycle's future (older, so it ages sooner: the safe side)
-            self.receiver.accept(msg.arbitration_id, msg.data, min(self.clock.now_ms(), self.next_tick), msg.is_extended_id)
+            # than that tick, never in the cycle's future; a frame that waited in the socket's
+            # queue is as old as its kernel timestamp says (older: it ages sooner, the safe side)
+            tick = min(self.clock.now_ms(), self.next_tick)
+            stamped = self._stamp_tick(msg.timestamp) if self._stamp_tick is not None else None
+            if stamped is not None:
+                tick = min(tick, stamped)
+            self.monitor.ingest(msg, tick)
 
     # ------------------------------------------------------------------ one cycle
-    def cycle(self) -> Outputs:
+    def cycle(self) -> CycleRecord:
+        """Step the core, send its outputs, keep and return the cycle's record."""
         tick = self.next_tick
-        rx = self.receiver
-        train = rx.train
-        if rx.train_tick is None or tick - rx.train_tick > self.setup.timeout_ticks:
-            train = None
-        inputs = Inputs(tuple(rx.reports), train, self.overruns)
-        self.state, out = core.step(self.setup, self.state, inputs, tick)
-        self.send(out)
+        out, rec = self.monitor.decide(tick, self.overruns)
+        self.send(out, rec.foreign_output)
         finished = self.clock.now_ms()
         if finished > tick + self.period:
             self.overruns += 1
@@ -95,32 +221,46 @@ class MonitorRunner:
         else:
             self.overruns = 0
         self.next_tick = tick + self.period
-        rec = CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
-                          out.module_flags, out.system_error, None if train is None else train.speed_cms,
-                          out.warning)
         self.records.append(rec)
         if self.on_cycle is not None:
             self.on_cycle(rec)
-        return out
+        return rec
 
-    def send(self, out: Outputs) -> None:
+    def send(self, out: Outputs, foreign_output: bool = False) -> None:
         flags = (out.module_flags & 0b111) | (0b1000 if out.system_error else 0)
-        flags |= (0b10000 if out.reasons & (1 << 6) else 0) | (0b100000 if out.reasons & (1 << 7) else 0)
+        flags |= (0b10000 if out.reasons & R_STALE else 0) | (0b100000 if out.reasons & R_PERCEPTOR else 0)
         distance = out.distance_dm if out.distance_dm != NO_DISTANCE else 65535
-        frames = (
+        messages = (
             (BRAKE_DEMAND_ID, {"Level": out.demand, "Warning": int(out.warning), "Reason": out.reasons & 0xFFFF,
                                "Cycle": out.cycle & 0xFFFFFFFF}),
-            (MONITOR_STATUS_ID, {"Mode": out.mode, "Warning": int(out.warning), "Node": min(out.node, 1023), "ErrorFlags": flags,
+            (MONITOR_STATUS_ID, {"Mode": out.mode, "Warning": int(out.warning), "ForeignOutput": int(foreign_output),
+                                 "Node": min(out.node, 1023), "ErrorFlags": flags,
                                  "VotedDistance": distance, "TableHash": self.table_hash,
                                  "DeadlineMisses": min(self.deadline_misses, 15)}),
         )
-        for frame_id, signals in frames:
+        for frame_id, signals in messages:
             data = self.sender.frame(frame_id, signals)
-            try:
-                self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False))
+            if self._transmit(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False)):
                 self.frames_sent += 1
-            except can.CanError:
+                if frame_id == BRAKE_DEMAND_ID and not self.clock.simulated:
+                    now = time.monotonic_ns() // 1_000_000
+                    if self.last_send_ms is not None:
+                        self.max_send_gap_ms = max(self.max_send_gap_ms, now - self.last_send_ms)
+                    self.last_send_ms = now
+            else:
                 self.send_failures += 1
+
+    def _transmit(self, msg: can.Message) -> bool:
+        """Send once; a full transmit queue (a flooded bus) is retried for SEND_RETRY_S."""
+        give_up = time.monotonic() + (0.0 if self.clock.simulated else SEND_RETRY_S)
+        while True:
+            try:
+                self.bus.send(msg)
+                return True
+            except can.CanError:
+                if time.monotonic() >= give_up:
+                    return False
+                time.sleep(0.0005)
 
     def send_final_emergency(self) -> None:
         """On shutdown: one last emergency demand, so that silence is never read as 'no brake'."""
@@ -130,11 +270,14 @@ class MonitorRunner:
         self.send(out)
 
     # ------------------------------------------------------------------ loop
-    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False) -> None:
-        """Real-time loop: wait for frames until each period boundary, then run the cycle."""
+    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False,
+            after_cycle: Optional[Callable[[CycleRecord], None]] = None) -> None:
+        """Real-time loop: take frames until each period boundary, then run the cycle."""
         done = 0
         while (cycles is None or done < cycles) and not stop():
             self.drain(self.next_tick)
             self.clock.sleep_until_ms(self.next_tick)
-            self.cycle()
+            rec = self.cycle()
             done += 1
+            if after_cycle is not None:
+                after_cycle(rec)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,39 +22,69 @@ import can
 from monitor.core import cycle as core
 from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES
 
+from . import frames
 from .clock import SimClock, WallClock
+from .logfile import CandumpWriter
 from .player import Player
 from .runner import MonitorRunner
 from .scenario import Scenario
 
 VIRTUAL_CHANNEL = "railguard"
+RECORDER_BUDGET_S = 0.010    # per cycle on a real bus: the recorder may never hold the monitor's cycle
+
+
+class BusOpenError(RuntimeError):
+    """The CAN interface could not be opened; the message names it and says what to do."""
+
+
+def open_bus(bus_kwargs: dict, *, monitor: bool = False) -> can.BusABC:
+    """Open a python-can bus; the monitor's own connection gets the kernel receive filter
+    (SocketCAN) and CAN FD frames enabled, so that it sees, and counts, what replay counts."""
+    kwargs = dict(bus_kwargs)
+    if monitor and kwargs.get("interface") == "socketcan":
+        kwargs.setdefault("can_filters", frames.kernel_filters())
+        kwargs.setdefault("fd", True)
+    try:
+        return can.Bus(**kwargs)
+    except Exception as exc:  # noqa: BLE001 - python-can raises OSError, CanError, ValueError, ...
+        iface, channel = bus_kwargs.get("interface"), bus_kwargs.get("channel")
+        hint = ("; a virtual SocketCAN bus without kernel CAN support: python -m can_bus.vcan -- railguard run "
+                "--interface socketcan --channel vcan0 ...; with the vcan module: ip link add dev vcan0 type vcan "
+                "&& ip link set up vcan0")
+        raise BusOpenError(f"cannot open CAN interface {iface!r} channel {channel!r}: "
+                           f"{str(exc).strip() or type(exc).__name__}{hint}") from None
 
 
 @dataclass
 class Recorder:
-    """Writes every frame on the bus to a candump .log (python-can's writer)."""
+    """Writes every frame on the bus to a candump -L .log (can_bus/logfile.py keeps error
+    frames' classes, which python-can's writer drops). On a real bus it reads for at most
+    RECORDER_BUDGET_S per cycle; if that was not enough, the log is marked incomplete."""
 
     bus: can.BusABC
     path: Path
     clock: object
     count: int = 0
+    complete: bool = True
 
     def __post_init__(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.writer = can.CanutilsLogWriter(str(self.path), channel="vcan0")
+        self.writer = CandumpWriter(self.path)
 
-    def drain(self) -> None:
+    def drain(self, budget_s: Optional[float] = None) -> None:
+        end = None if budget_s is None or self.clock.simulated else time.monotonic() + budget_s
         while True:
             msg = self.bus.recv(timeout=0.0)
             if msg is None:
                 return
-            if self.clock.simulated:
-                msg.timestamp = self.clock.now_s()
-            self.writer.on_message_received(msg)
+            self.writer.write(msg, self.clock.now_s() if self.clock.simulated else msg.timestamp)
             self.count += 1
+            if end is not None and time.monotonic() > end:
+                self.complete = False
+                return
 
     def close(self) -> None:
-        self.drain()
+        self.drain(budget_s=None if self.clock.simulated else 1.0)
         self.writer.stop()
 
 
@@ -72,12 +103,13 @@ def detected_faults(runner: MonitorRunner) -> dict:
         for bit, name in enumerate(REASON_NAMES):
             if rec.reasons & (1 << bit) and name in ("stale", "system_error", "perceptor", "deadline", "train_input"):
                 seen[name] += 1
-    out = {f"frames_{k}": v for k, v in sorted(runner.receiver.rejected.items())}
+    out = {f"frames_{k}": v for k, v in sorted(runner.receiver.rejected.items()) if v}
     out.update({f"cycles_{k}": v for k, v in sorted(seen.items())})
     return out
 
 
-def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Path], plot: Optional[Path]) -> dict:
+def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Path], plot: Optional[Path],
+              recorder_complete: bool = True) -> dict:
     levels = Counter(DEMAND_NAMES[r.demand] for r in runner.records)
     changes = sum(1 for a, b in zip(runner.records, runner.records[1:]) if a.demand != b.demand)
     summary = {
@@ -90,11 +122,19 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "faults_detected": detected_faults(runner),
         "frames_received": runner.frames_received,
         "frames_rejected": runner.receiver.rejected_total,
+        "rejects": {k: v for k, v in sorted(runner.receiver.rejected.items()) if v},
+        "frames_filtered": runner.monitor.tally.filtered,
+        "frame_kinds": {k: v for k, v in sorted(runner.monitor.tally.kinds.items())},
+        "bus_state": runner.monitor.tally.bus_state,
+        "bus_events": dict(sorted(runner.monitor.tally.bus_events.items())),
+        "foreign_output_cycles": sum(1 for r in runner.records if r.foreign_output),
         "deadline_misses": runner.deadline_misses,
+        "max_send_gap_ms": runner.max_send_gap_ms,
         "send_failures": runner.send_failures,
         "table": runner.setup.model,
         "table_sha256": runner.setup.table.sha256,
         "log": None if log is None else str(log),
+        "log_complete": recorder_complete,
         "plot": None if plot is None else str(plot),
     }
     if player is not None:
@@ -159,12 +199,14 @@ def travelled(t_s: list, speed_mps: list) -> list:
     return out
 
 
-def status_line(rec, player: Optional[Player]) -> str:
+def status_line(rec, player: Optional[Player], bus_state: str = "error_active") -> str:
     speed = f"{(player.speed if player.started else 0.0):5.1f} m/s" if player is not None else (
         "   -     " if rec.speed_cms is None else f"{rec.speed_cms / 100:5.1f} m/s")
     dist = "   none " if rec.distance_dm == NO_DISTANCE else f"{rec.distance_dm / 10:7.1f}"
     return (f"t {rec.tick / 1000:7.1f} s  speed {speed}  voted distance {dist} m  "
-            f"demand {DEMAND_NAMES[rec.demand]:<9}  mode {MODE_NAMES[rec.mode]:<9}  node {rec.node}")
+            f"demand {DEMAND_NAMES[rec.demand]:<9}  mode {MODE_NAMES[rec.mode]:<9}  node {rec.node}"
+            + ("  FOREIGN SENDER on the monitor's output IDs" if rec.foreign_output else "")
+            + ("" if bus_state == "error_active" else f"  bus {bus_state.replace('_', '-')}"))
 
 
 class StopOnSignal:
@@ -214,7 +256,7 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event) ->
             rec = runner.cycle()
             recorder.drain()
             if show is not None and i % 10 == 0:
-                show(status_line(runner.records[-1], player))
+                show(status_line(rec, player))
             if player.finished or stop.is_set():
                 break
             tick += period
@@ -224,7 +266,7 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event) ->
         for b in buses:
             b.shutdown()
     plot_path = make_plot(out_dir / f"run-{scenario.name}.png", runner, player, f"railguard run: {scenario.name}") if plot else None
-    return RunResult(summarise(runner, player, log_path, plot_path), runner, player)
+    return RunResult(summarise(runner, player, log_path, plot_path, recorder.complete), runner, player)
 
 
 def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: Optional[Scenario],
@@ -239,44 +281,43 @@ def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: 
 
 def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop: threading.Event) -> RunResult:
     clock = WallClock()
-    mon_bus = can.Bus(**bus_kwargs)
     log_path = out_dir / f"run-{name}.log"
-    rec_bus = can.Bus(**bus_kwargs)
-    recorder = Recorder(rec_bus, log_path, clock)
+    opened: list = []
     player = None
     player_thread = None
-    player_bus = None
     try:
+        mon_bus = open_bus(bus_kwargs, monitor=True)
+        opened.append(mon_bus)
+        rec_bus = open_bus(bus_kwargs)
+        opened.append(rec_bus)
+        recorder = Recorder(rec_bus, log_path, clock)
         runner = MonitorRunner(mon_bus, setup, clock)
         period = setup.config.period_ms
         if scenario is not None:
-            player_bus = can.Bus(**bus_kwargs)
+            player_bus = open_bus(bus_kwargs)
+            opened.append(player_bus)
             player = Player(player_bus, scenario, period)
             player_thread = threading.Thread(target=play_loop, args=(player, clock, stop), daemon=True)
             player_thread.start()
+
+        def after_cycle(rec) -> None:
+            recorder.drain(RECORDER_BUDGET_S)
+            if show is not None and len(runner.records) % 10 == 0:
+                show(status_line(rec, player, runner.monitor.tally.bus_state))
+
         cycles = None if duration_s is None else int(duration_s * 1000 / period)
-        done = 0
-        while not stop.is_set() and (cycles is None or done < cycles):
-            runner.drain(runner.next_tick)
-            clock.sleep_until_ms(runner.next_tick)
-            rec = runner.cycle()
-            recorder.drain()
-            done += 1
-            if show is not None and done % 10 == 0:
-                show(status_line(rec, player))
-            if player is not None and player.finished:
-                break
+        runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished),
+                   after_cycle=after_cycle)
         stop.set()
         runner.send_final_emergency()
         if player_thread is not None:
             player_thread.join(timeout=2)
         recorder.close()
     finally:
-        for b in (mon_bus, rec_bus, player_bus):
-            if b is not None:
-                b.shutdown()
+        for b in opened:
+            b.shutdown()
     plot_path = make_plot(out_dir / f"run-{name}.png", runner, player, f"railguard run on {name}") if plot else None
-    return RunResult(summarise(runner, player, log_path, plot_path), runner, player)
+    return RunResult(summarise(runner, player, log_path, plot_path, recorder.complete), runner, player)
 
 
 def play_loop(player: Player, clock, stop: threading.Event) -> None:

@@ -36,8 +36,9 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
         from can_bus.replay import ReplayError
         from can_bus.scenario import ScenarioError
+        from can_bus.session import BusOpenError
 
-        errors += [ScenarioError, ReplayError, can.CanError]
+        errors += [ScenarioError, ReplayError, BusOpenError, can.CanError]
     except ImportError:  # the CAN shell is optional for the offline commands
         pass
     try:
@@ -240,12 +241,10 @@ def cmd_play(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    import can
-
     from can_bus import scenario as scenarios
     from can_bus.clock import WallClock
     from can_bus.player import Player
-    from can_bus.session import play_loop
+    from can_bus.session import open_bus, play_loop
 
     scen = scenarios.load(args.scenario)
     bus_cfg = _bus_kwargs(args)
@@ -254,7 +253,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    bus = can.Bus(**bus_cfg)
+    bus = open_bus(bus_cfg)
     try:
         player = Player(bus, scen, args.period, wait_for_monitor=not args.no_wait)
         play_loop(player, WallClock(), stop)
@@ -267,33 +266,72 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    from can_bus import logfile
     from can_bus import replay as rp
     from can_bus.plot import plot_run
     from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES
 
     setup = _monitor_setup(args)
-    decisions, stats = rp.replay(setup, rp.read_frames(args.file))
+    # read the log once before replaying: a bad line stops with exit 2 before any output
+    rp.check(args.file, max_gap_s=args.max_gap, on_time_error=args.on_time_error)
+    replay = rp.Replay(setup, max_gap_s=args.max_gap, on_time_error=args.on_time_error, source=args.file)
+    frames = logfile.read(args.file)
+    thinned = rp.Thinned()
+    first = last = None
+    changes = 0
+    shown = 0
+    out = sys.stdout
+    if args.json:
+        out.write('{"decisions": [')
+    else:
+        print("    time  demand     mode       node  voted distance  reasons")
+    for d in replay.run(frames):
+        if args.json:
+            out.write(("" if first is None else ", ") + json.dumps([d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm]))
+        elif last is None or (d.demand, d.mode) != (last.demand, last.mode):
+            changes += 1
+            if shown < args.max_lines:
+                shown += 1
+                reasons = ",".join(n for b, n in enumerate(REASON_NAMES) if d.reasons & (1 << b)) or "-"
+                dist = "none" if d.distance_dm == NO_DISTANCE else f"{d.distance_dm / 10:.1f} m"
+                print(f"{d.tick / 1000:8.1f}  {DEMAND_NAMES[d.demand]:<9}  {MODE_NAMES[d.mode]:<9}  {d.node:>4}  "
+                      f"{dist:>14}  {reasons}")
+        if first is None:
+            first = d
+        last = d
+        if not args.no_plot:
+            thinned.add(d)
+    stats = replay.stats.as_dict()
     plot_path = None
     if not args.no_plot:
-        t = [d.tick / 1000 for d in decisions]
+        ds = thinned.points
         plot_path = plot_run(Path(args.out) / f"replay-{Path(args.file).stem}.png", f"railguard replay: {Path(args.file).name}",
-                             t, [0.0 if d.speed_cms is None else d.speed_cms / 100 for d in decisions], None,
-                             [None if d.distance_dm == NO_DISTANCE else d.distance_dm / 10 for d in decisions],
-                             [d.demand for d in decisions], [d.mode for d in decisions])
-    changes = [d for i, d in enumerate(decisions) if i == 0 or (d.demand, d.mode) != (decisions[i - 1].demand, decisions[i - 1].mode)]
+                             [x.tick / 1000 for x in ds], [0.0 if x.speed_cms is None else x.speed_cms / 100 for x in ds], None,
+                             [None if x.distance_dm == NO_DISTANCE else x.distance_dm / 10 for x in ds],
+                             [x.demand for x in ds], [x.mode for x in ds])
+    stats["plot"] = None if plot_path is None else str(plot_path)
     if args.json:
-        print(json.dumps({"cycles": len(decisions), **stats, "plot": None if plot_path is None else str(plot_path),
-                          "decisions": [[d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm] for d in decisions]}))
+        out.write("], " + json.dumps(stats)[1:] + "\n")
         return 0
-    print(f"{len(decisions)} cycles over {decisions[-1].tick / 1000:.1f} s; frames {stats['frames']}, accepted {stats['accepted']}, "
-          f"rejected {sum(stats['rejected'].values())}")
+    if changes > shown:
+        print(f"... {changes - shown} more changes (--max-lines {args.max_lines}; --json gives every cycle)")
+    print(f"{stats['cycles']} cycles over {(last.tick - first.tick) / 1000:.1f} s; frames {stats['frames']}, "
+          f"accepted {stats['accepted']}, rejected {sum(stats['rejected'].values())}, filtered {stats['filtered']}")
+    if stats["rejected"]:
+        print("rejected: " + ", ".join(f"{k} {v}" for k, v in stats["rejected"].items()))
+    if stats["bus_events"]:
+        print("bus state: " + ", ".join(f"{k} {v}" for k, v in stats["bus_events"].items())
+              + f" (last: {stats['bus_state']})")
+    for a in stats["time_anomaly_lines"]:
+        print(f"line {a['line']}: timestamp jumps {a['jump_s']:+.6f} s ({a['kind']}): {a['action']}", file=sys.stderr)
+    extra = sum(stats["time_anomalies"].values()) - len(stats["time_anomaly_lines"])
+    if extra > 0:
+        print(f"... and {extra} more timestamp anomalies", file=sys.stderr)
+    if stats["segments"] > 1:
+        print(f"{stats['segments']} segments, each replayed as a fresh start of the monitor "
+              f"(a timestamp jump of more than {args.max_gap:g} s ends a segment)")
     if "agreement_with_recorded" in stats:
         print(f"agreement with the recorded BrakeDemand frames: {stats['agreement_with_recorded']:.1%}")
-    print("    time  demand     mode       node  voted distance  reasons")
-    for d in changes:
-        reasons = ",".join(n for b, n in enumerate(REASON_NAMES) if d.reasons & (1 << b)) or "-"
-        dist = "none" if d.distance_dm == NO_DISTANCE else f"{d.distance_dm / 10:.1f} m"
-        print(f"{d.tick / 1000:8.1f}  {DEMAND_NAMES[d.demand]:<9}  {MODE_NAMES[d.mode]:<9}  {d.node:>4}  {dist:>14}  {reasons}")
     if plot_path:
         print(f"plot: {plot_path}")
     return 0
@@ -528,14 +566,28 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser(
         "replay",
         help="run the core over a recorded bus log and show its decisions",
-        description="Replay a recorded bus log (.log, .asc, .blf, ... anything python-can reads) through the core, "
-                    "print where demand and mode change, and plot; the same file always gives the same decisions.",
+        description="Replay a recorded bus log (candump -L .log, or .asc, .blf, .csv, .trc ... anything python-can "
+                    "reads) through the live monitor's receive path and core, print where demand and mode change, "
+                    "the frames rejected by reason (fd_frame, remote_frame, error_frame, foreign_output, bad_crc, ...), "
+                    "frames the live receive filter would not deliver (filtered), the bus state its error frames "
+                    "announce, and plot. The log is streamed (constant memory); a line that is not a frame, or a "
+                    "NaN/inf timestamp, stops with exit 2 naming file and line. The same file always gives the same "
+                    "decisions.",
     )
     rp.add_argument("file", metavar="FILE", help="a CAN log file")
     _add_monitor_options(rp)
     rp.add_argument("--out", default="railguard-out", metavar="DIR", help="folder for the plot (default: %(default)s)")
     rp.add_argument("--no-plot", action="store_true", help="do not draw the plot")
-    rp.add_argument("--json", action="store_true", help="print every decision as JSON")
+    rp.add_argument("--json", action="store_true", help="print every decision as JSON (streamed: [tick, demand, "
+                    "reasons, mode, node, distance_dm] per cycle) with the frame counts")
+    rp.add_argument("--max-gap", type=_positive_float, default=60.0, metavar="S",
+                    help="a timestamp jump of more than S seconds, forward or back, ends a segment "
+                         "(default: %(default)s)")
+    rp.add_argument("--on-time-error", choices=("split", "refuse"), default="split",
+                    help="at such a jump: replay the rest as a fresh start of the monitor (split) or stop with "
+                         "exit 2 naming the line (refuse) (default: %(default)s)")
+    rp.add_argument("--max-lines", type=_positive_int, default=200, metavar="N",
+                    help="list at most N changes of demand or mode (default: %(default)s)")
     rp.set_defaults(func=cmd_replay)
 
     b = sub.add_parser(

@@ -1,12 +1,13 @@
 """The front-door fuzzing (verification/fuzz.py): a quick run through the real runner is
-clean, nasty frames land under the right reject reason, the reference receiver reads the
-DBC as cantools does, and planted bugs in the codec, the runner path or the core are caught."""
+clean, nasty frames land under the right reject reason (or are filtered), the reference
+receiver reads the DBC as cantools does and error frames as the runner does, and planted bugs
+in the codec, the runner path, the reference's own rule order or the core are caught."""
 from __future__ import annotations
 
 import can
 import pytest
 
-from can_bus import codec
+from can_bus import codec, frames, runner as runner_mod
 from can_bus.clock import SimClock
 from can_bus.codec import Receiver
 from can_bus.runner import MonitorRunner
@@ -38,9 +39,14 @@ def test_quick_run_figures():
     assert r["frames"] >= 8000
     assert r["exceptions"] == 0 and r["violations"] == 0 and r["harness_errors"] == 0
     assert r["accounting_exact"] and r["reference_agrees"]
-    assert r["frames"] == r["accepted"] + sum(r["rejected"].values())
-    assert r["accepted"] > 0 and r["rejected"].get("bad_crc", 0) > 0 and r["rejected"].get("unknown_id", 0) > 0
-    assert "undecodable" not in r["rejected"]
+    assert r["frames"] == r["accepted"] + sum(r["rejected"].values()) + r["filtered"]
+    assert r["frames"] == sum(r["frame_kinds"].values())
+    assert r["accepted"] > 0 and r["filtered"] > 0
+    for reason in ("bad_crc", "rate_exceeded", "fd_frame", "remote_frame", "error_frame", "foreign_output"):
+        assert r["rejected"].get(reason, 0) > 0, reason
+    assert "undecodable" not in r["rejected"] and "unknown_id" not in r["rejected"]
+    assert "error_or_remote_frame" not in r["rejected"]          # the old shared reason is gone
+    assert r["foreign_cycles"] > 0 and set(r["foreign_ids"]) == {"0x10", "0x40"}
     assert r["cycles"] > 0 and r["frames_per_s"] > 0
     # the same seed gives the same frames
     again = fuzz.run(8000, quiet, seed=5, workers=1)
@@ -54,6 +60,14 @@ def test_reference_layout_is_the_dbc():
     assert set(fuzz.LAYOUT) == {m.frame_id for m in db.messages}
     assert fuzz.OBSTACLES == codec.OBSTACLE_IDS and fuzz.TRAIN_STATE == codec.TRAIN_STATE_ID
     assert fuzz.INPUTS == codec.INPUT_IDS
+    assert fuzz.MONITORED == set(frames.MONITORED_IDS) and set(fuzz.OUTPUTS) == set(frames.OUTPUT_IDS)
+    assert fuzz.KINDS == frames.KINDS and fuzz.BUS_STATES == frames.BUS_STATES
+    assert fuzz.FOREIGN_HOLD_CYCLES == runner_mod.FOREIGN_HOLD_CYCLES
+    # every reason is either covered by the fuzzing or named as unreachable through this front door
+    assert set(fuzz.COVERED_REASONS) | set(fuzz.UNREACHABLE_REASONS) == \
+        set(codec.REJECT_REASONS) | set(codec.SHELL_REJECT_REASONS)
+    assert "receive_error" in fuzz.UNREACHABLE_REASONS
+    assert {"fd_frame", "remote_frame", "error_frame", "foreign_output", "rate_exceeded"} <= set(fuzz.COVERED_REASONS)
     for msg in db.messages:
         assert msg.length == 8 and not msg.is_extended_frame
         ours = {name: rest for name, *rest in fuzz.LAYOUT[msg.frame_id]}
@@ -71,8 +85,8 @@ def test_reference_crc_and_unpacking_agree_with_the_codec():
                0x25: {"Status": 2, "Distance": 1, "ClosingSpeed": 15000, "Module": 2, "Channel": 1},
                0x30: {"Speed": 12000, "TrackCondition": 1, "BrakeStatus": 1},
                0x10: {"Level": 2, "Warning": 1, "Reason": 8191, "Cycle": 2**32 - 1},
-               0x40: {"Mode": 3, "Node": 1023, "ErrorFlags": 63, "VotedDistance": 65535, "TableHash": 4095,
-                      "DeadlineMisses": 15}}
+               0x40: {"Mode": 3, "ForeignOutput": 1, "Node": 1023, "ErrorFlags": 63, "VotedDistance": 65535,
+                      "TableHash": 4095, "DeadlineMisses": 15}}
     for _ in range(17):
         for fid, sig in signals.items():
             data = sender.frame(fid, sig)
@@ -84,6 +98,19 @@ def test_reference_crc_and_unpacking_agree_with_the_codec():
             assert values == decoded
             bad = bytes([data[0] ^ 0x01]) + data[1:]
             assert fuzz.e2e_crc(bad, fid) != bad[0]
+
+
+def test_reference_reads_error_frames_as_the_runner():
+    """linux/can/error.h: the class bits in the identifier, the controller status in data[1]."""
+    classes = (0, 0x001, 0x004, 0x008, 0x040, 0x100, 0x004 | 0x100, 0x044, 0x1FF, 0x20000004, 0x20000040)
+    for cls in classes:
+        for ctrl in (0x00, 0x01, 0x04, 0x08, 0x10, 0x20, 0x40, 0x14, 0x44, 0x50, 0xFF):
+            for data in (bytes([0, ctrl]) + bytes(6), bytes([0, ctrl]), b"", b"\0"):
+                m = msg(cls, data, error=True, extended=True)
+                assert fuzz.announced_state(m) == frames.bus_state_of(m), (hex(cls), hex(ctrl), data)
+    assert fuzz.announced_state(msg(0x040, bytes(8), error=True)) == "bus_off"
+    assert fuzz.announced_state(msg(0x004, bytes([0, 0x10]), error=True)) == "error_passive"
+    assert fuzz.announced_state(msg(0x001, bytes([0, 0x10]), error=True)) is None    # no CRTL class: no status
 
 
 # ----------------------------------------------------------------------------- nasty frames, one by one
@@ -105,19 +132,24 @@ def train(counter, speed=500):
 
 @pytest.fixture
 def harness():
-    return fuzz.Harness(fuzz.setup_for("m2", "3oo3"), fuzz.Stats())
+    h = fuzz.Harness(fuzz.setup_for("m2", "3oo3"), fuzz.Stats())
+    yield h
+    h.bus.shutdown()
 
 
 def feed(h, t, m, reason):
-    """Feed one frame; the receiver must count it under `reason` (and the reference agree)."""
-    rx = h.rx
-    before, accepted = dict(rx.rejected), rx.accepted
+    """Feed one frame; the runner must count it under `reason` (and the reference agree)."""
+    rx, tally = h.rx, h.tally
+    before, accepted, filtered, kinds = dict(rx.rejected), rx.accepted, tally.filtered, sum(tally.kinds.values())
     outcome = h.feed(t, m, "test")
     assert outcome == reason
+    assert sum(tally.kinds.values()) == kinds + 1 and h.runner.frames_received == h.frames
     if reason == fuzz.ACCEPTED:
-        assert rx.accepted == accepted + 1 and dict(rx.rejected) == before
+        assert rx.accepted == accepted + 1 and dict(rx.rejected) == before and tally.filtered == filtered
+    elif reason == fuzz.FILTERED:
+        assert rx.accepted == accepted and dict(rx.rejected) == before and tally.filtered == filtered + 1
     else:
-        assert rx.accepted == accepted
+        assert rx.accepted == accepted and tally.filtered == filtered
         assert rx.rejected[reason] == before.get(reason, 0) + 1
         assert sum(rx.rejected.values()) == sum(before.values()) + 1
     assert not h.failed and not h.stats.violations and h.stats.exceptions == 0
@@ -128,28 +160,58 @@ def test_nasty_frames_are_rejected_under_the_right_reason(harness):
     good = obstacle(0)
     feed(h, 0, msg(0x20, good), "accepted")
     assert h.rx.reports[0] == Report(1, 1234, 50, 0, 0)
-    feed(h, 5, msg(0x20, bytes([good[0] ^ 0x5A]) + good[1:]), "bad_crc")                    # wrong CRC
-    feed(h, 6, msg(0x20, good[:3] + bytes([good[3] ^ 0x10]) + good[4:]), "bad_crc")           # a bit flipped
-    feed(h, 7, msg(0x20, good[:7]), "wrong_length")                                             # truncated
-    feed(h, 8, msg(0x20, good + b"\0"), "wrong_length")                                         # extended
-    feed(h, 9, msg(0x20, good + bytes(56), fd=True), "wrong_length")                           # CAN FD, 64 bytes
-    feed(h, 10, msg(0x123, good), "unknown_id")                                                 # not in the DBC
-    feed(h, 11, msg(0x20, good, extended=True), "unknown_id")                                   # 29-bit
-    feed(h, 12, msg(0x820, good), "unknown_id")                                                 # out-of-spec 11-bit
-    feed(h, 13, msg(0x20, good, remote=True), "error_or_remote_frame")                          # remote frame
-    feed(h, 14, msg(0, b"", error=True), "error_or_remote_frame")                               # error frame
-    feed(h, 150, msg(0x20, good), "repeated_counter")                                           # replay
-    feed(h, 260, msg(0x20, obstacle(3)), "counter_jump")                                        # jump 0 -> 3
-    feed(h, 370, msg(0x20, obstacle(4, Distance=60001)), "out_of_range")                      # 6000.1 m
-    feed(h, 480, msg(0x20, obstacle(5, Status=3)), "out_of_range")                              # no such status
-    feed(h, 590, msg(0x20, obstacle(6, ClosingSpeed=-15001)), "out_of_range")                 # -150.01 m/s
-    feed(h, 700, msg(0x20, obstacle(7, Module=1)), "out_of_range")                              # another module's
-    feed(h, 800, msg(0x21, obstacle(0, ch=0)), "bad_crc")                                       # ID swapped
-    feed(h, 810, msg(0x30, train(0, speed=12001)), "out_of_range")                              # 120.01 m/s
+    # refused or dropped before the codec (and so not counted by 0x020's rate policing: four
+    # frames on it within 10 ms here, yet the next frame meets the CRC check, not the policing)
+    feed(h, 1, msg(0x20, good, remote=True), "remote_frame")                                  # remote request
+    feed(h, 2, msg(0x20, good, fd=True), "fd_frame")                                          # CAN FD, valid payload
+    feed(h, 3, msg(0x20, good + bytes(56), fd=True), "fd_frame")                              # CAN FD, 64 bytes
+    feed(h, 4, msg(0, b"", error=True), "error_frame")                                        # error frame
+    feed(h, 5, msg(0x20, good, remote=True, fd=True, error=True), "error_frame")              # error first
+    feed(h, 6, msg(0x20, good, extended=True), "filtered")                                    # 29-bit
+    feed(h, 7, msg(0x20, good, extended=True, fd=True), "filtered")                           # 29-bit FD
+    feed(h, 8, msg(0x123, good), "filtered")                                                  # not monitored
+    feed(h, 9, msg(0x820, good), "filtered")                                                  # out-of-spec 11-bit
+    feed(h, 10, msg(0x10, codec.encode(0x10, {"Level": 0}, 0)), "foreign_output")            # our BrakeDemand ID
+    feed(h, 11, msg(0x40, b"\0"), "foreign_output")                                           # our status ID, junk
+    assert dict(h.tally.kinds) == {"classical": 5, "remote": 1, "fd": 3, "error": 2, "extended": 1}  # 29-bit FD: fd
+    assert h.tally.filtered == 4
+    # the codec's checks: one frame on 0x020 every 50 ms (never more than 3 within a period)
+    feed(h, 50, msg(0x20, bytes([good[0] ^ 0x5A]) + good[1:]), "bad_crc")                    # wrong CRC
+    feed(h, 100, msg(0x20, good[:3] + bytes([good[3] ^ 0x10]) + good[4:]), "bad_crc")        # a bit flipped
+    feed(h, 150, msg(0x20, good[:7]), "wrong_length")                                          # truncated
+    feed(h, 200, msg(0x20, good + b"\0"), "wrong_length")                                      # extended
+    feed(h, 250, msg(0x20, good), "repeated_counter")                                          # replay
+    feed(h, 300, msg(0x20, obstacle(3)), "counter_jump")                                       # jump 0 -> 3
+    feed(h, 350, msg(0x20, obstacle(4, Distance=60001)), "out_of_range")                     # 6000.1 m
+    feed(h, 400, msg(0x20, obstacle(5, Status=3)), "out_of_range")                             # no such status
+    feed(h, 450, msg(0x20, obstacle(6, ClosingSpeed=-15001)), "out_of_range")                # -150.01 m/s
+    feed(h, 500, msg(0x20, obstacle(7, Module=1)), "out_of_range")                             # another module's
+    feed(h, 510, msg(0x21, obstacle(0, ch=0)), "bad_crc")                                      # ID swapped
+    feed(h, 520, msg(0x30, train(0, speed=12001)), "out_of_range")                             # 120.01 m/s
     assert h.rx.reports[0] == Report(1, 1234, 50, 0, 0) and h.rx.train is None   # nothing bad latched
-    feed(h, 900, msg(0x20, obstacle(8, Distance=777)), "accepted")
-    assert h.rx.reports[0] == Report(1, 777, 50, 0, 900)
-    assert h.cycles == 9                                       # ticks 0..800 ran between the frames
+    feed(h, 600, msg(0x20, obstacle(8, Distance=777)), "accepted")
+    assert h.rx.reports[0] == Report(1, 777, 50, 0, 600)
+    assert h.cycles == 6                                       # ticks 0..500 ran between the frames
+    assert "unknown_id" not in h.rx.rejected                   # the receive filter leaves the codec none
+
+
+def test_foreign_frame_sets_the_diagnostic_for_one_second(harness):
+    h = harness
+    feed(h, 250, msg(0x10, codec.encode(0x10, {"Level": 2}, 3)), "foreign_output")
+    flagged, sent = [], []
+    for _ in range(15):
+        h.cycle()
+        rec = h.runner.records[-1]
+        flagged.append(rec.foreign_output)
+        sent.append(fuzz.unpack(0x40, bytes(h.bus.last_sent[0x40].data))["ForeignOutput"])
+    ticks = [r.tick for r in h.runner.records[-15:]]
+    assert ticks[0] == 300 and [t for t, f in zip(ticks, flagged) if f] == list(range(300, 1300, 100))  # 10 cycles
+    assert sent == [int(f) for f in flagged]                   # the MonitorStatus frame carries it
+    # a second foreign frame (on MonitorStatus) holds it again; the record is what cycle() returns
+    feed(h, 1750, msg(0x40, bytes(8)), "foreign_output")
+    rec = h.runner.cycle()
+    assert rec is h.runner.records[-1] and rec.tick == 1800 and rec.foreign_output
+    assert rec.demand == h.runner.outputs.demand
 
 
 def test_babbling_burst_is_refused_and_quarantined(harness):
@@ -160,13 +222,30 @@ def test_babbling_burst_is_refused_and_quarantined(harness):
     feed(h, 1030, msg(0x21, obstacle(3, ch=1)), "rate_exceeded")          # 4 frames in one period
     assert h.rx.reports[1] is None                                         # its report withdrawn
     feed(h, 1300, msg(0x21, obstacle(4, ch=1)), "rate_exceeded")          # quarantined until 1530
-    feed(h, 1600, msg(0x21, obstacle(5, ch=1)), "accepted")               # heard again, counter in step
+    assert h.rx.reports[1] is None
+    feed(h, 1600, msg(0x21, obstacle(9, ch=1)), "accepted")               # counter forgotten: resynchronised
+    feed(h, 1700, msg(0x21, obstacle(11, ch=1)), "counter_jump")          # and checked again from 9
+    # invalid frames count too, before their CRC is looked at
+    bad = obstacle(0, ch=2)
+    bad = bytes([bad[0] ^ 1]) + bad[1:]
+    for t in (2000, 2010, 2020):
+        feed(h, t, msg(0x22, bad), "bad_crc")
+    feed(h, 2030, msg(0x22, obstacle(0, ch=2)), "rate_exceeded")
+    feed(h, 2040, msg(0x22, bad), "rate_exceeded")                         # a bad frame, refused by the policing
+    feed(h, 2050, msg(0x22, obstacle(0, ch=2)[:5]), "rate_exceeded")       # so is a short one
+    # FD and remote frames on an input ID are refused before the policing: they do not count
+    for t in (3000, 3001, 3002, 3003):
+        feed(h, t, msg(0x23, obstacle(0, ch=3), fd=True), "fd_frame")
+        feed(h, t, msg(0x23, b"", remote=True), "remote_frame")
+    for i, t in enumerate((3010, 3020, 3030)):
+        feed(h, t, msg(0x23, obstacle(i, ch=3)), "accepted")
     # TrainState babbling: the fourth frame within 100 ms is refused
-    for i, t in enumerate((2000, 2001, 2002)):
+    for i, t in enumerate((4000, 4001, 4002)):
         feed(h, t, msg(0x30, train(i)), "accepted")
-    feed(h, 2003, msg(0x30, train(3)), "rate_exceeded")
+    feed(h, 4003, msg(0x30, train(3)), "rate_exceeded")
     h.finish()
-    assert h.frames == h.rx.accepted + h.rx.rejected_total == h.runner.frames_received
+    assert h.frames == h.rx.accepted + h.rx.rejected_total + h.tally.filtered == h.runner.frames_received
+    assert not h.failed
 
 
 # ----------------------------------------------------------------------------- planted bugs are caught
@@ -188,6 +267,76 @@ def test_planted_bug_crc_check_skipped_is_caught(monkeypatch):
     fuzz.run_stream(ex["table"], ex["topology"], ex["profile"], bytes.fromhex(ex["tape"]), stats,
                     budget=fuzz.STREAM_FRAMES)
     assert stats.examples[0]["frame"] == ex["frame"] and stats.examples[0]["frame_index"] == ex["frame_index"]
+
+
+def test_planted_crc_before_rate_policing_is_caught(monkeypatch):
+    """The old order: a frame with a broken CRC refused before the policing counts it."""
+    real = Receiver._accept
+
+    def crc_first(self, frame_id, data, tick):
+        if (frame_id in codec.INPUT_IDS and len(data) == 8
+                and not codec.check_profile2_crc(data, codec.data_id(frame_id))):
+            self._reject("bad_crc")
+            return None
+        return real(self, frame_id, data, tick)
+
+    monkeypatch.setattr(Receiver, "_accept", crc_first)
+    r = planted_run()
+    assert r["violations_by_kind"].get("reason", 0) > 0 and not r["reference_agrees"]
+    assert any(e["kind"] == "reason" and e["expected"] == "rate_exceeded" and "'bad_crc': 1" in e["what"]
+               for e in r["examples"])
+
+
+def test_reference_with_crc_before_rate_policing_disagrees(monkeypatch):
+    """The comparison is sensitive to the rule order: the reference itself with the CRC
+    checked before the policing (a scratch copy, the runner untouched) is caught."""
+
+    class CrcFirst(fuzz.ReferenceReceiver):
+        def check(self, fid, data, now):
+            if len(data) != 8:
+                return "wrong_length"
+            if fuzz.e2e_crc(data, fid) != data[0]:
+                return "bad_crc"
+            return super().check(fid, data, now)
+
+    monkeypatch.setattr(fuzz, "ReferenceReceiver", CrcFirst)
+    r = planted_run()
+    assert r["violations_by_kind"].get("reason", 0) > 0 and not r["reference_agrees"]
+
+
+def test_planted_receive_filter_skipped_is_caught(monkeypatch):
+    monkeypatch.setattr(frames, "monitored", lambda m: True)
+    r = planted_run()
+    assert r["violations_by_kind"].get("reason", 0) > 0
+    assert any(e["expected"] == fuzz.FILTERED for e in r["examples"] if e["kind"] == "reason")
+
+
+def test_planted_fd_frame_decoded_is_caught(monkeypatch):
+    real = frames.classify
+    monkeypatch.setattr(frames, "classify", lambda m: "classical" if real(m) == "fd" else real(m))
+    r = planted_run()
+    assert r["violations_by_kind"].get("reason", 0) > 0
+    assert any(e["expected"] == "fd_frame" for e in r["examples"] if e["kind"] == "reason")
+
+
+def test_planted_short_foreign_output_hold_is_caught(monkeypatch):
+    monkeypatch.setattr(runner_mod, "FOREIGN_HOLD_CYCLES", runner_mod.FOREIGN_HOLD_CYCLES - 1)
+    r = planted_run()
+    assert r["violations_by_kind"].get("cycle", 0) > 0
+    assert any("ForeignOutput" in e["what"] for e in r["examples"])
+
+
+def test_planted_counter_kept_across_quarantine_is_caught(monkeypatch):
+    class Sticky(codec.SenderState):
+        def __setattr__(self, name, value):
+            if name == "counter" and value is None and getattr(self, "counter", None) is not None:
+                return                            # the alive counter survives the quarantine
+            super().__setattr__(name, value)
+
+    monkeypatch.setattr(codec, "SenderState", Sticky)
+    r = planted_run()
+    assert r["violations_by_kind"].get("reason", 0) > 0
+    assert any(e["expected"] == fuzz.ACCEPTED and "counter_jump" in e["what"] for e in r["examples"])
 
 
 def test_planted_exception_inside_the_codec_is_caught(monkeypatch):

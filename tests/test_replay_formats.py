@@ -29,15 +29,15 @@ def test_other_formats_replay_to_the_same_decisions(recorded, suffix):
     with can.Logger(str(converted)) as writer:
         for msg in can.LogReader(log):
             writer.on_message_received(msg)
-    base, stats = replay.replay(setup, replay.read_frames(log))
-    other, other_stats = replay.replay(setup, replay.read_frames(converted))
+    base, stats = replay.replay_file(setup, log)
+    other, other_stats = replay.replay_file(setup, converted)
     assert other_stats["frames"] == stats["frames"] > 1000
     assert [(d.tick, d.demand, d.mode, d.node) for d in other] == [(d.tick, d.demand, d.mode, d.node) for d in base]
     assert any(d.demand == 2 for d in base)
 
 
-def test_replay_refuses_an_empty_log(tmp_path):
+def test_replay_refuses_an_empty_log(recorded, tmp_path):
     empty = tmp_path / "empty.log"
     empty.write_text("")
     with pytest.raises(replay.ReplayError, match="no CAN frames"):
-        replay.read_frames(empty)
+        replay.replay_file(recorded[0], empty)

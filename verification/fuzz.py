@@ -2,40 +2,53 @@
 
 What runs is the real shell: `can_bus.runner.MonitorRunner` on an in-memory python-can bus
 with the simulated clock. Each frame is put on the bus at its arrival time and the runner's
-own `drain()` takes it (error/remote filter, then `Receiver.accept` with the E2E CRC,
-alive-counter, range and babbling checks; the rate window is one period, as the runner
-sets it); at every period boundary the runner's own `cycle()` steps the core
-(`monitor.core.cycle.step`) with the latched reports and sends its two frames.
+own `drain()` takes it (`MonitorCore.ingest`: kind tally, receive filter, FD/remote/error
+refusal, foreign frames on the output IDs, then `Receiver.accept` with per-ID rate policing,
+the E2E CRC, alive counter, range checks; the rate window is one period, as the runner sets
+it); at every period boundary the runner's own `cycle()` steps the core
+(`monitor.core.cycle.step`) with the latched reports, returns its CycleRecord and sends its
+two frames.
 
 What goes in: one Hypothesis example is one stream. Hypothesis draws the shipped table
 (m1, m2), the topology (3oo3, 2oo2), a traffic profile and an 8 KB byte string; the byte
 string is read as a program whose instructions make frames and move time (`Traffic`):
   * nominal cycles: every channel and the TrainState, consistent, with persistent faults
     (2oo2 disagreement, a distance offset, a silent or degraded channel, a silent or bad train);
-  * valid frames of every DBC message, encoded by the codec (`codec.Sender`: CRC and counter);
+  * valid frames of every DBC message, encoded by the codec (`codec.Sender`: CRC and counter),
+    the monitor's own output IDs 0x010/0x040 among them (foreign frames);
   * mutated valid frames: bit flips, byte changes, truncation, extension up to 64 bytes,
     counter replay and jump, payload replacement, IDs swapped (DBC, 11-bit, 29-bit), the
     extended/remote/error/FD flags, then the CRC recomputed or not;
   * fully random frames: 11-bit, 29-bit and out-of-spec IDs, remote and error frames, FD,
     lengths 0..64, a DLC that disagrees with the data;
+  * hostile frames the shell refuses or drops: CAN FD frames (valid payloads too), remote
+    requests and controller error frames (warning, passive, bus-off, restart) on the
+    monitored IDs, frames on the output IDs 0x010/0x040, 29-bit and unmonitored 11-bit
+    neighbours of the monitored IDs;
   * signals out of their DBC range with a valid CRC and counter (module/channel mismatch too);
-  * babbling bursts (4..23 frames of one sender, 0..39 ms apart), replays of earlier frames,
+  * babbling bursts (4..23 frames of one sender, 0..39 ms apart; valid, with bad CRC or wrong
+    length, or interleaved with FD/remote frames on the same ID), replays of earlier frames,
     small time steps, explicit cycles and silences of up to 40 periods.
 
 What is checked, after every frame and every cycle:
   * no exception escapes the runner (`drain`, `cycle`); an exception swallowed inside the
     core's fail-safe (`step` returning its SAFE_STOP fallback) counts as one too;
-  * accounting: each frame moves exactly one counter by exactly one (accepted, or one reject
-    reason, `error_or_remote_frame` included), the runner counts it as received, and per
-    stream frames in = accepted + sum of rejected by reason;
-  * the reason: a reference receiver written here from the DBC and the codec's documented
-    rules (own CRC-8 0x2F, own bit unpacking, the rate window and quarantine) predicts the
-    outcome of every frame and the latched reports and TrainState; the receiver must agree;
+  * accounting: each frame moves exactly one counter by exactly one (accepted, one reject
+    reason, or `filtered`) and the kind tally by one, the runner counts it as received, and
+    per stream frames received = accepted + sum of rejected by reason + filtered;
+  * the reason: a reference receiver written here from the DBC and the documented rules
+    (own classification, own receive filter, own CRC-8 0x2F, own bit unpacking, the rate
+    window and quarantine) predicts the outcome of every frame, the frame's kind, the bus
+    state error frames announce, the latched reports and TrainState; the runner must agree;
+  * every cycle: the CycleRecord it returns agrees with `runner.outputs` and with the
+    reference (the TrainState speed it used, the ForeignOutput diagnostic), and the
+    BrakeDemand and MonitorStatus frames it sent carry a valid CRC, the demand and the
+    ForeignOutput bit;
   * domains: every latched report is absent or (status 0..2, distance 0..60000 dm, closing
     -15000..15000 cm/s, obstacle 0..2, integer tick <= now), the TrainState is absent or in
     range; the core's State (mode 0..3, node < table nodes, seen within the channel mask,
     disagree/healthy/error counts >= 0, cycle +1 per cycle) and Outputs (demand 0..2, reasons
-    < 1024, distance 0..60000 or 65535, observation < table observations, module flags,
+    < 8192, distance 0..60000 or 65535, observation < table observations, module flags,
     node/mode/cycle equal to the state's) and the documented mode rules (INIT, SAFE_STOP and
     the latch demand emergency).
 A stream stops at its first exception or violation, so a fault is counted once and does
@@ -81,7 +94,7 @@ MAX_EXAMPLES_KEPT = 8        # violation/exception records kept in the result
 MAX_FAULTS = 50              # a worker job stops after this many faults (the verdict is FAIL anyway)
 
 ACCEPTED = "accepted"
-OTHER_FRAME = "error_or_remote_frame"    # the runner's own category (error and remote frames)
+FILTERED = "filtered"        # outside the receive filter: never seen live, not a reject
 
 # ----------------------------------------------------------------------------- the DBC, read independently
 # Frame IDs and signal layouts as railguard.dbc gives them, in raw units: (name, start bit,
@@ -102,11 +115,28 @@ LAYOUT = {
     **{fid: _OBSTACLE for fid in OBSTACLES},
     TRAIN_STATE: _E2E + (("TrackCondition", 12, 1, False, 0, 1), ("BrakeStatus", 13, 1, False, 0, 1),
                          ("Speed", 16, 16, False, 0, 12000)),    # [0|120] m/s at 0.01 m/s
-    MONITOR_STATUS: _E2E + (("Mode", 12, 2, False, 0, 3), ("Warning", 14, 1, False, 0, 1), ("Node", 16, 10, False, 0, 1023),
+    MONITOR_STATUS: _E2E + (("Mode", 12, 2, False, 0, 3), ("Warning", 14, 1, False, 0, 1),
+                            ("ForeignOutput", 15, 1, False, 0, 1), ("Node", 16, 10, False, 0, 1023),
                             ("ErrorFlags", 26, 6, False, 0, 63), ("VotedDistance", 32, 16, False, 0, 65535),
                             ("TableHash", 48, 12, False, 0, 4095), ("DeadlineMisses", 60, 4, False, 0, 15)),
 }
 DBC_IDS = tuple(sorted(LAYOUT))
+
+# ----------------------------------------------------------------------------- the rules, read independently
+# The receive filter (standard frames on these IDs, and every error frame), the monitor's own
+# output IDs (live, never received from itself: any frame there is foreign), and the
+# ForeignOutput hold: set in every cycle within FOREIGN_HOLD_CYCLES periods of the last
+# foreign frame ("within the last second", the DBC's comment on MonitorStatus.ForeignOutput).
+MONITORED = frozenset((BRAKE_DEMAND, *OBSTACLES, TRAIN_STATE, MONITOR_STATUS))
+OUTPUTS = (BRAKE_DEMAND, MONITOR_STATUS)
+FOREIGN_HOLD_CYCLES = 10
+KINDS = ("classical", "extended", "fd", "remote", "error")
+SHELL_REASON = {"fd": "fd_frame", "remote": "remote_frame", "error": "error_frame"}
+# linux/can/error.h: error class in the identifier, controller status in data[1]
+CAN_ERR_FLAG = 0x20000000
+ERR_CRTL, ERR_BUSOFF, ERR_RESTARTED = 0x004, 0x040, 0x100
+CTRL_WARNING, CTRL_PASSIVE, CTRL_ACTIVE = 0x04 | 0x08, 0x10 | 0x20, 0x40
+BUS_STATES = ("error_active", "error_warning", "error_passive", "bus_off")
 
 
 def _crc_table() -> tuple:
@@ -151,18 +181,54 @@ def in_dbc_range(frame_id: int, values: dict) -> bool:
     return all(lo <= values[name] <= hi for name, _, _, _, lo, hi in LAYOUT[frame_id])
 
 
+def frame_kind(msg: can.Message) -> str:
+    """The kind of a frame from its flags: error before remote before FD before 29-bit."""
+    if msg.is_error_frame:
+        return "error"
+    if msg.is_remote_frame:
+        return "remote"
+    if msg.is_fd:
+        return "fd"
+    return "extended" if msg.is_extended_id else "classical"
+
+
+def announced_state(msg: can.Message) -> Optional[str]:
+    """The controller state an error frame announces (the worst one it names), or None."""
+    cls = msg.arbitration_id & ~CAN_ERR_FLAG & 0x1FFFFFFF
+    data = bytes(msg.data)
+    ctrl = data[1] if cls & ERR_CRTL and len(data) >= 2 else 0
+    if cls & ERR_BUSOFF:
+        return "bus_off"
+    if ctrl & CTRL_PASSIVE:
+        return "error_passive"
+    if ctrl & CTRL_WARNING:
+        return "error_warning"
+    if cls & ERR_RESTARTED or ctrl & CTRL_ACTIVE:
+        return "error_active"
+    return None
+
+
 class ReferenceReceiver:
     """What the receive path must do with each frame, from the DBC and the documented rules
-    (can_bus/codec.py and runner.py docstrings), written independently of the codec:
+    (issue 13; can_bus/frames.py, runner.py and codec.py docstrings), written independently
+    of the codec and the runner. In order, for each frame:
 
-    error or remote frame -> error_or_remote_frame (the runner); 29-bit -> unknown_id; an ID
-    not in the DBC -> unknown_id; not 8 bytes -> wrong_length; CRC -> bad_crc; then the alive
-    counter of that ID is remembered whatever follows. An input sender (obstacle channels,
-    TrainState) with more than MAX_FRAMES_PER_WINDOW CRC-valid frames within the window is
-    refused (rate_exceeded) until BABBLE_QUARANTINE_MS after its last excess frame and its
-    channel's report is withdrawn. Counter equal to the last -> repeated_counter, not last + 1
-    -> counter_jump. A signal outside its DBC range, or a report claiming another (or a
-    missing) channel -> out_of_range. Otherwise accepted and latched with the arrival tick.
+    1. its kind: error, remote, FD, 29-bit or classical (error frames also announce a bus state);
+    2. not an error frame and 29-bit, or an ID outside 0x010, 0x020-0x025, 0x030, 0x040 ->
+       `filtered` (the receive filter drops it: not a reject);
+    3. an error, remote or FD frame -> error_frame, remote_frame, fd_frame;
+    4. on the output IDs 0x010 or 0x040 -> foreign_output; ForeignOutput is set in every cycle
+       within FOREIGN_HOLD_CYCLES periods of it;
+    5. an ID not in the DBC -> unknown_id; on an input ID (obstacle channels, TrainState) every
+       frame counts for the rate, valid or not, before length and CRC: more than
+       MAX_FRAMES_PER_WINDOW frames within the window (one period) quarantines the ID until
+       BABBLE_QUARANTINE_MS after its last excess frame; while quarantined -> rate_exceeded,
+       the channel's report withdrawn and the ID's alive counter forgotten (the next frame
+       that passes the CRC resynchronises without a counter check); then not 8 bytes ->
+       wrong_length; CRC -> bad_crc; the alive counter is remembered from here on whatever
+       follows; equal to the last -> repeated_counter, not last + 1 -> counter_jump; a signal
+       outside its DBC range, or a report claiming another (or a missing) channel ->
+       out_of_range; otherwise accepted and latched with the arrival tick.
     """
 
     def __init__(self, channels: int, window_ms: int) -> None:
@@ -174,23 +240,33 @@ class ReferenceReceiver:
         self.counter: dict = {}
         self.times: dict = {}
         self.quarantine_until: dict = {}
+        self.foreign_tick: Optional[int] = None
+        self.bus_state = "error_active"
+        self.bus_events: Counter = Counter()
 
-    def expect(self, msg: can.Message, now: int) -> str:
-        if msg.is_error_frame or msg.is_remote_frame:
-            return OTHER_FRAME
-        if msg.is_extended_id:
-            return "unknown_id"
+    def expect(self, msg: can.Message, now: int) -> tuple:
+        """(kind, outcome) of one frame arriving at tick `now`; the outcome is ACCEPTED,
+        FILTERED or the reject reason."""
+        kind = frame_kind(msg)
+        if kind == "error":
+            state = announced_state(msg)
+            if state is not None:
+                self.bus_state = state
+                self.bus_events[state] += 1
+        elif msg.is_extended_id or msg.arbitration_id not in MONITORED:
+            return kind, FILTERED
+        if kind != "classical":
+            return kind, SHELL_REASON[kind]
         fid = msg.arbitration_id
+        if fid in OUTPUTS:
+            self.foreign_tick = now
+            return kind, "foreign_output"
+        return kind, self.check(fid, bytes(msg.data), now)
+
+    def check(self, fid: int, data: bytes, now: int) -> str:
+        """Rule 5, a classical frame on a monitored input ID."""
         if fid not in LAYOUT:
             return "unknown_id"
-        data = bytes(msg.data)
-        if len(data) != 8:
-            return "wrong_length"
-        if e2e_crc(data, fid) != data[0]:
-            return "bad_crc"
-        counter = data[1] & 0xF
-        last = self.counter.get(fid)
-        self.counter[fid] = counter
         if self.window > 0 and fid in INPUTS:
             times = [t for t in self.times.get(fid, ()) if now - t < self.window]
             times.append(now)
@@ -201,7 +277,15 @@ class ReferenceReceiver:
                 ch = fid - OBSTACLES[0]
                 if fid in OBSTACLES and ch < self.channels:
                     self.reports[ch] = None
+                self.counter[fid] = None
                 return "rate_exceeded"
+        if len(data) != 8:
+            return "wrong_length"
+        if e2e_crc(data, fid) != data[0]:
+            return "bad_crc"
+        counter = data[1] & 0xF
+        last = self.counter.get(fid)
+        self.counter[fid] = counter
         if last is not None:
             step = (counter - last) & 0xF
             if step == 0:
@@ -221,6 +305,10 @@ class ReferenceReceiver:
             self.train_tick = now
         return ACCEPTED
 
+    def foreign(self, tick: int, period: int) -> bool:
+        """Must the cycle at `tick` set the ForeignOutput diagnostic?"""
+        return self.foreign_tick is not None and tick - self.foreign_tick <= FOREIGN_HOLD_CYCLES * period
+
 
 # ----------------------------------------------------------------------------- results
 class Stats:
@@ -230,6 +318,11 @@ class Stats:
         self.frames = 0
         self.accepted = 0                 # the receiver's own count
         self.rejected: Counter = Counter()  # the receiver's own counts by reason
+        self.filtered = 0                   # the runner's count of frames outside the receive filter
+        self.frame_kinds: Counter = Counter()  # the runner's tally of frames by kind
+        self.bus_states: Counter = Counter()   # bus states announced by error frames (the runner's tally)
+        self.foreign_ids: Counter = Counter()  # foreign_output frames by ID
+        self.foreign_cycles = 0                # cycles with the ForeignOutput diagnostic set
         self.expected: Counter = Counter()  # the reference receiver's outcomes
         self.kinds: Counter = Counter()     # frames by generator kind
         self.accepted_ids: Counter = Counter()
@@ -255,6 +348,9 @@ class Stats:
     def as_dict(self) -> dict:
         return {
             "frames": self.frames, "accepted": self.accepted, "rejected": dict(self.rejected),
+            "filtered": self.filtered, "frame_kinds": dict(self.frame_kinds), "bus_states": dict(self.bus_states),
+            "foreign_ids": {f"0x{k:02X}": v for k, v in sorted(self.foreign_ids.items())},
+            "foreign_cycles": self.foreign_cycles,
             "expected": dict(self.expected), "kinds": dict(self.kinds),
             "accepted_ids": {f"0x{k:02X}": v for k, v in sorted(self.accepted_ids.items())},
             "exceptions": self.exceptions, "harness_errors": self.harness_errors,
@@ -269,6 +365,11 @@ class Stats:
         self.frames += d["frames"]
         self.accepted += d["accepted"]
         self.rejected.update(d["rejected"])
+        self.filtered += d["filtered"]
+        self.frame_kinds.update(d["frame_kinds"])
+        self.bus_states.update(d["bus_states"])
+        self.foreign_ids.update({int(k, 16): v for k, v in d["foreign_ids"].items()})
+        self.foreign_cycles += d["foreign_cycles"]
         self.expected.update(d["expected"])
         self.kinds.update(d["kinds"])
         self.accepted_ids.update({int(k, 16): v for k, v in d["accepted_ids"].items()})
@@ -306,12 +407,14 @@ class FrontDoorBus(can.BusABC):
         self.channel_info = "railguard fuzz front door"
         self.pending: deque = deque()
         self.sent = 0
+        self.last_sent: dict = {}     # frame ID -> the newest frame the runner sent on it
 
     def _recv_internal(self, timeout):
         return (self.pending.popleft() if self.pending else None), True
 
     def send(self, msg, timeout=None) -> None:
         self.sent += 1
+        self.last_sent[msg.arbitration_id] = msg
 
 
 @lru_cache(maxsize=None)
@@ -339,6 +442,7 @@ class Harness:
         self.bus = FrontDoorBus()
         self.runner = MonitorRunner(self.bus, setup, self.clock)
         self.rx = self.runner.receiver
+        self.tally = self.runner.monitor.tally
         cfg = setup.config
         self.channels = cfg.channels
         self.modules = cfg.modules
@@ -349,6 +453,8 @@ class Harness:
         self.all_seen = (1 << cfg.channels) - 1
         self.shadow: Counter = Counter()    # the receiver's reject counts as of the last frame
         self.shadow_total = 0
+        self.shadow_kinds: Counter = Counter()   # the runner's kind tally as of the last frame
+        self.filtered = 0                   # frames the reference expected to be filtered
         self.frames = 0
         self.cycles = 0
         self.failed = False
@@ -372,13 +478,20 @@ class Harness:
     def feed(self, t: int, msg: can.Message, kind: str) -> str:
         if self.failed or (self.budget is not None and self.frames >= self.budget):
             raise StreamStop
-        while self.runner.next_tick < t:
+        runner = self.runner
+        while runner.next_tick < t:
             self.cycle()
         self.clock.sleep_until_ms(t)
         now = self.clock.now_ms()
-        expected = self.model.expect(msg, now)
-        rx, runner = self.rx, self.runner
-        accepted0, received0 = rx.accepted, runner.frames_received
+        # the runner stamps a frame no later than the next tick, nor than its bus timestamp
+        # says (the simulated clock has none: None)
+        tick = min(now, runner.next_tick)
+        stamped = self.clock.tick_of_stamp(msg.timestamp)
+        if stamped is not None:
+            tick = min(tick, stamped)
+        frame_kind_, expected = self.model.expect(msg, tick)
+        rx, tally = self.rx, self.tally
+        accepted0, received0, filtered0 = rx.accepted, runner.frames_received, tally.filtered
         self.bus.pending.append(msg)
         self.frames += 1
         self.stats.frames += 1
@@ -390,17 +503,22 @@ class Harness:
             self._fault("exception", f"runner.drain raised {type(exc).__name__}: {exc}", msg,
                         traceback=traceback.format_exc(limit=-3), expected=expected)
         # accounting: exactly one counter moved, by exactly one
-        total = sum(rx.rejected.values())
+        rejected = rx.rejected
+        total = sum(rejected.values())
         if expected == ACCEPTED:
-            ok = rx.accepted == accepted0 + 1 and total == self.shadow_total
+            ok = rx.accepted == accepted0 + 1 and total == self.shadow_total and tally.filtered == filtered0
+        elif expected == FILTERED:
+            ok = rx.accepted == accepted0 and total == self.shadow_total and tally.filtered == filtered0 + 1
         else:
-            ok = (rx.accepted == accepted0 and total == self.shadow_total + 1
-                  and rx.rejected[expected] == self.shadow[expected] + 1)
+            ok = (rx.accepted == accepted0 and total == self.shadow_total + 1 and tally.filtered == filtered0
+                  and rejected[expected] == self.shadow[expected] + 1)
         ok = ok and runner.frames_received == received0 + 1 and not self.bus.pending
         if not ok:
-            moved = {k: v - self.shadow[k] for k, v in rx.rejected.items() if v != self.shadow[k]}
+            moved = {k: v - self.shadow[k] for k, v in rejected.items() if v != self.shadow[k]}
             if rx.accepted != accepted0:
                 moved[ACCEPTED] = rx.accepted - accepted0
+            if tally.filtered != filtered0:
+                moved[FILTERED] = tally.filtered - filtered0
             counted = sum(moved.values())
             kind_ = "reason" if counted == 1 and runner.frames_received == received0 + 1 else "accounting"
             if kind_ == "accounting":
@@ -408,11 +526,27 @@ class Harness:
             self._fault(kind_, f"expected {expected}, counters moved {moved or 'none'}"
                         f" (frames_received +{runner.frames_received - received0})", msg,
                         expected=expected, moved=moved)
-        if expected != ACCEPTED:
+        if expected == ACCEPTED:
+            self.stats.accepted_ids[msg.arbitration_id] += 1
+        elif expected == FILTERED:
+            self.filtered += 1
+        else:
             self.shadow[expected] += 1
             self.shadow_total += 1
-        else:
-            self.stats.accepted_ids[msg.arbitration_id] += 1
+            if expected == "foreign_output":
+                self.stats.foreign_ids[msg.arbitration_id] += 1
+        # the kind tally: one more of this frame's kind, nothing else
+        kinds, shadow_kinds = tally.kinds, self.shadow_kinds
+        if kinds[frame_kind_] != shadow_kinds[frame_kind_] + 1 or sum(kinds.values()) != sum(shadow_kinds.values()) + 1:
+            moved = {k: kinds[k] - shadow_kinds[k] for k in set(kinds) | set(shadow_kinds)
+                     if kinds[k] != shadow_kinds[k]}
+            self._fault("kind", f"a {frame_kind_} frame, the kind tally moved {moved or 'none'}", msg,
+                        expected=expected)
+        shadow_kinds[frame_kind_] += 1
+        if frame_kind_ == "error" and (tally.bus_state != self.model.bus_state
+                                       or tally.bus_events != self.model.bus_events):
+            self._fault("bus_state", f"bus state {tally.bus_state} {dict(tally.bus_events)}, reference "
+                        f"{self.model.bus_state} {dict(self.model.bus_events)}", msg, expected=expected)
         # what is latched: within its domain, and what the reference receiver latched
         problem = self._latched_problem(now)
         if problem:
@@ -454,14 +588,15 @@ class Harness:
         tick = runner.next_tick
         self.clock.sleep_until_ms(tick)
         before, overruns = runner.state, runner.overruns
-        counts = (rx.accepted, sum(rx.rejected.values()), runner.frames_received)
+        counts = (rx.accepted, sum(rx.rejected.values()), runner.frames_received, self.tally.filtered)
+        sent0 = self.bus.sent
         try:
-            out = runner.cycle()
+            rec = runner.cycle()
         except Exception as exc:  # noqa: BLE001
             self._fault("exception", f"runner.cycle raised {type(exc).__name__}: {exc}",
                         traceback=traceback.format_exc(limit=-3), tick=tick)
         self.cycles += 1
-        state = runner.state
+        state, out = runner.state, runner.outputs
         if out.mode == SAFE_STOP and out.reasons == _FALLBACK_REASONS and out.distance_dm == NO_DISTANCE \
                 and out.module_flags == 0 and out.observation == 0:
             # the shape of step()'s fail-safe result: did the cycle raise inside?
@@ -471,16 +606,61 @@ class Harness:
             except Exception as exc:  # noqa: BLE001
                 self._fault("exception", f"core step raised inside (caught by its fail-safe) "
                             f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc(limit=-3), tick=tick)
-        if (rx.accepted, sum(rx.rejected.values()), runner.frames_received) != counts:
+        if (rx.accepted, sum(rx.rejected.values()), runner.frames_received, self.tally.filtered) != counts:
             self.stats.accounting_errors += 1
             self._fault("accounting", "a cycle changed the frame counters", tick=tick)
         problem = self._latched_problem(tick) or self._core_problem(before, state, out)
         if problem:
             self._fault("domain", problem, tick=tick, state=repr(state), outputs=repr(out))
+        foreign = self.model.foreign(tick, self.period)
+        problem = self._record_problem(tick, rec, out, foreign) or self._sent_problem(sent0, out, foreign)
+        if problem:
+            self._fault("cycle", problem, tick=tick, record=repr(rec), outputs=repr(out))
         self.stats.cycles += 1
         self.stats.modes[state.mode] += 1
         self.stats.demands[out.demand] += 1
+        self.stats.foreign_cycles += foreign
         return out
+
+    def _record_problem(self, tick: int, rec, out, foreign: bool) -> str:
+        """The CycleRecord `cycle()` returned: the cycle's outputs, the TrainState speed the
+        core was given (none once older than the timeout) and the ForeignOutput diagnostic."""
+        if rec is None or rec is not (self.runner.records[-1] if self.runner.records else None):
+            return f"cycle() returned {rec!r}, not the cycle's record"
+        if rec.tick != tick:
+            return f"record tick {rec.tick!r} for the cycle at {tick}"
+        if (rec.demand, rec.reasons, rec.mode, rec.node, rec.distance_dm, rec.module_flags, rec.system_error,
+                rec.warning) != (out.demand, out.reasons, out.mode, out.node, out.distance_dm, out.module_flags,
+                                 out.system_error, out.warning):
+            return "the record disagrees with runner.outputs"
+        m = self.model
+        fresh = m.train is not None and tick - m.train_tick <= self.setup.timeout_ticks
+        speed = m.train.speed_cms if fresh else None
+        if rec.speed_cms != speed:
+            return f"record speed {rec.speed_cms!r}, the reference's fresh TrainState gives {speed!r}"
+        if rec.foreign_output is not foreign:
+            return (f"ForeignOutput {rec.foreign_output!r}, reference {foreign} "
+                    f"(last foreign frame at {m.foreign_tick}, cycle at {tick})")
+        return ""
+
+    def _sent_problem(self, sent0: int, out, foreign: bool) -> str:
+        """The two frames the cycle sent, read with the reference's own CRC and unpacking."""
+        bus = self.bus
+        if bus.sent != sent0 + 2:
+            return f"the cycle sent {bus.sent - sent0} frames, not BrakeDemand and MonitorStatus"
+        demand, status = bus.last_sent.get(BRAKE_DEMAND), bus.last_sent.get(MONITOR_STATUS)
+        if demand is None or status is None:
+            return "no BrakeDemand or no MonitorStatus sent"
+        for fid, m in ((BRAKE_DEMAND, demand), (MONITOR_STATUS, status)):
+            data = bytes(m.data)
+            if m.is_extended_id or len(data) != 8 or e2e_crc(data, fid) != data[0]:
+                return f"sent frame 0x{fid:02X} {data.hex()} is not a valid 8-byte E2E frame"
+        d, st = unpack(BRAKE_DEMAND, bytes(demand.data)), unpack(MONITOR_STATUS, bytes(status.data))
+        if d["Level"] != out.demand or st["Mode"] != out.mode:
+            return f"sent Level {d['Level']} / Mode {st['Mode']} for demand {out.demand} / mode {out.mode}"
+        if st["ForeignOutput"] != foreign:
+            return f"sent ForeignOutput {st['ForeignOutput']}, reference {int(foreign)}"
+        return ""
 
     def _core_problem(self, before, s, out) -> str:
         if not (type(s.mode) is int and 0 <= s.mode <= 3):
@@ -538,16 +718,19 @@ class Harness:
             except StreamStop:
                 pass
         if not self.failed:
-            total = rx.accepted + sum(rx.rejected.values())
-            if not (total == self.frames == self.runner.frames_received):
+            total = rx.accepted + sum(rx.rejected.values()) + self.tally.filtered
+            if not (total == self.frames == self.runner.frames_received == sum(self.tally.kinds.values())):
                 self.stats.accounting_errors += 1
                 try:
                     self._fault("accounting", f"frames in {self.frames}, received {self.runner.frames_received}, "
-                                f"accepted + rejected {total}")
+                                f"accepted + rejected + filtered {total}, by kind {sum(self.tally.kinds.values())}")
                 except StreamStop:
                     pass
         self.stats.accepted += rx.accepted
         self.stats.rejected.update(rx.rejected)
+        self.stats.filtered += self.tally.filtered
+        self.stats.frame_kinds.update(self.tally.kinds)
+        self.stats.bus_states.update(self.tally.bus_events)
         self.bus.shutdown()
 
 
@@ -598,12 +781,15 @@ class Tape:
 
 
 PROFILES = {   # traffic profile -> relative weights of the instructions (a nominal cycle is 7 frames)
-    "mixed": dict(nominal=8, valid=16, mutated=18, random=12, out_of_range=6, burst=1, replay=6, advance=14,
-                  cycle=10, silence=1),
-    "nominal with faults": dict(nominal=60, valid=3, mutated=4, random=3, out_of_range=2, burst=1, replay=2,
-                                advance=3, cycle=1, silence=1),
-    "junk": dict(nominal=3, valid=10, mutated=30, random=30, out_of_range=8, burst=2, replay=6, advance=6, cycle=5),
-    "babbling": dict(nominal=12, valid=12, burst=10, mutated=8, replay=5, advance=20, cycle=8, silence=2),
+    "mixed": dict(nominal=8, valid=16, mutated=18, random=12, shell=8, out_of_range=6, burst=1, replay=6,
+                  advance=14, cycle=10, silence=1),
+    "nominal with faults": dict(nominal=60, valid=3, mutated=4, random=3, shell=2, out_of_range=2, burst=1,
+                                replay=2, advance=3, cycle=1, silence=1),
+    "junk": dict(nominal=3, valid=10, mutated=30, random=30, shell=10, out_of_range=8, burst=2, replay=6,
+                 advance=6, cycle=5),
+    "babbling": dict(nominal=12, valid=12, burst=10, mutated=8, shell=3, replay=5, advance=20, cycle=8, silence=2),
+    "hostile": dict(nominal=10, valid=8, shell=24, burst=6, mutated=8, random=4, replay=4, advance=16, cycle=8,
+                    silence=1),
 }
 PROFILE_NAMES = tuple(PROFILES)
 
@@ -619,6 +805,11 @@ def _op_table(weights: dict) -> tuple:
 OP_TABLES = {name: _op_table(w) for name, w in PROFILES.items()}
 SPEEDS = (0, 0, 300, 1500, 4000, 8000, 12000)
 FD_LENGTHS = (12, 16, 20, 24, 32, 48, 64)
+MONITORED_IDS = tuple(sorted(MONITORED))
+UNMONITORED_NEIGHBOURS = (0x000, 0x00F, 0x011, 0x01F, 0x026, 0x02F, 0x031, 0x03F, 0x041, 0x410, 0x420, 0x7FF)
+ERROR_CLASSES = (ERR_CRTL, ERR_CRTL, ERR_CRTL, ERR_BUSOFF, ERR_RESTARTED, ERR_CRTL | ERR_RESTARTED,
+                 0x001, 0x002, 0x008, 0x010, 0x020, 0x080, 0x200)     # the rest: TX timeout, arbitration, ...
+CTRL_BYTES = (0x04, 0x08, 0x10, 0x20, 0x40, 0x14, 0x00, 0x01, 0x02)
 FAULTS = ("none",) * 6 + ("disagree", "offset", "silent", "degraded", "train_silent", "train_bad", "far")
 
 
@@ -797,14 +988,64 @@ class Traffic:
         self.send(fid, self.valid(fid, sig), "out_of_range")
 
     def op_burst(self) -> None:
+        """A babbling sender: valid frames, or with bad CRCs or wrong lengths among them (the rate
+        policing counts every frame on the ID), or with FD/remote frames on the same ID among
+        them (refused before the policing: they do not count)."""
         t = self.tape
         fid = (OBSTACLES + (TRAIN_STATE,))[t.u8() % 7]
         n = 4 + t.u8() % 20
         gap = t.u8() % 40
+        style = t.u8() % 4
         sig = self.signals(fid)
         for _ in range(n):
-            self.send(fid, self.valid(fid, sig), "burst")
+            data = self.valid(fid, sig)
+            b = t.u8() if style else 0
+            if style == 1 and b & 1:                   # CRC broken
+                self.send(fid, bytes([data[0] ^ (1 + (b >> 1))]) + data[1:], "burst")
+            elif style == 2 and b & 1:                 # wrong length
+                self.send(fid, data[:b % 8] if b & 2 else data + bytes(1 + b % 8), "burst")
+            elif style == 3 and b & 1:                 # an FD or remote frame on the same ID
+                if b & 2:
+                    self.send(fid, data, "burst", fd=True)
+                else:
+                    self.send(fid, b"", "burst", remote=True, dlc=8)
+            else:
+                self.send(fid, data, "burst")
             self.now += gap
+
+    def op_shell(self) -> None:
+        """A frame the shell refuses or drops before the codec: CAN FD, remote, error frames,
+        frames on the monitor's own output IDs, 29-bit or unmonitored 11-bit IDs."""
+        t = self.tape
+        b = t.u8()
+        what = b % 8
+        fid = MONITORED_IDS[t.u8() % len(MONITORED_IDS)]
+        if what == 0:                                  # CAN FD on a monitored ID: a valid payload, or longer
+            data = codec.encode(fid, self.signals(fid), t.u8())
+            if b & 0x80:
+                data += t.take(FD_LENGTHS[t.u8() % len(FD_LENGTHS)] - 8)
+            self.send(fid, data, "fd", fd=True)
+        elif what == 1:                                # a remote request
+            self.send(fid, b"", "remote", remote=True, dlc=t.u8() % 9, extended=b & 0x80 == 0x80)
+        elif what in (2, 3):                           # a controller error frame
+            cls = ERROR_CLASSES[t.u8() % len(ERROR_CLASSES)] | (t.u8() & 0x3 if b & 0x80 else 0)
+            n = 8 if b & 0x40 == 0 else t.u8() % 3
+            data = bytearray(t.take(n))
+            if n >= 2:
+                data[1] = CTRL_BYTES[t.u8() % len(CTRL_BYTES)]
+            self.send(cls | (CAN_ERR_FLAG if b & 0x20 else 0), bytes(data), "error", error=True,
+                      extended=True)
+        elif what in (4, 5):                           # on the monitor's own output IDs
+            out = OUTPUTS[(b >> 7) & 1]
+            if b & 0x40:
+                data = self.valid(out, self.signals(out))
+            else:
+                data = t.take(t.u8() % 9)
+            self.send(out, data, "foreign")
+        elif what == 6:                                # a monitored ID, 29-bit
+            self.send(fid, codec.encode(fid, self.signals(fid), t.u8()), "filtered", extended=True)
+        else:                                          # an 11-bit ID next to the monitored ones
+            self.send(UNMONITORED_NEIGHBOURS[t.u8() % len(UNMONITORED_NEIGHBOURS)], t.take(8), "filtered")
 
     def op_replay(self) -> None:
         if not self.history:
@@ -971,8 +1212,11 @@ def run(frames: int, progress: Progress, seed: int = 0, workers: Optional[int] =
         target=frames, seed=seed, workers=workers, seconds=seconds,
         frames_per_s=result["frames"] / seconds if seconds > 0 else 0.0,
         rejected_total=rejected_total,
-        accounting_exact=(result["accounting_errors"] == 0 and result["frames"] == result["accepted"] + rejected_total),
+        accounting_exact=(result["accounting_errors"] == 0
+                          and result["frames"] == result["accepted"] + rejected_total + result["filtered"]
+                          == sum(result["frame_kinds"].values())),
         reference_agrees=(expected.pop(ACCEPTED, 0) == result["accepted"]
+                          and expected.pop(FILTERED, 0) == result["filtered"]
                           and {k: v for k, v in expected.items() if v}
                           == {k: v for k, v in result["rejected"].items() if v}),
     )
@@ -980,7 +1224,20 @@ def run(frames: int, progress: Progress, seed: int = 0, workers: Optional[int] =
 
 
 # ----------------------------------------------------------------------------- the verification part
-COVERED_REASONS = tuple(r for r in codec.REJECT_REASONS if r != "undecodable") + (OTHER_FRAME,)
+# Reject reasons the fuzzing must produce: the codec's and the shell's, except those no frame
+# through this front door can earn:
+UNREACHABLE_REASONS = {
+    # python-can's recv raising CanError (a broken socket): a virtual bus cannot produce it
+    "receive_error": "needs a failing interface",
+    # the codec's net for an exception inside its checks: a fault, never a frame's due (the
+    # reference never predicts it, so every occurrence is a reason violation)
+    "undecodable": "only a codec fault",
+    # the receive filter (rule 2) passes only the DBC's own IDs to the codec, and the output
+    # IDs stop at rule 4: no frame reaches the codec's unknown-ID check any more (the
+    # reference keeps the rule, so one would still show as a mismatch)
+    "unknown_id": "the receive filter passes only DBC IDs",
+}
+COVERED_REASONS = tuple(r for r in codec.REJECT_REASONS + codec.SHELL_REJECT_REASONS if r not in UNREACHABLE_REASONS)
 MODE_NAMES = ("INIT", "NORMAL", "DEGRADED", "SAFE_STOP")
 
 
@@ -998,8 +1255,14 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
     r = run(target, progress)
     accepted, rej_total = r["accepted"], r["rejected_total"]
     missing_reasons = [x for x in COVERED_REASONS if not r["rejected"].get(x)]
-    missing_ids = [f"0x{i:02X}" for i in DBC_IDS if not r["accepted_ids"].get(f"0x{i:02X}")]
+    missing_reasons += [FILTERED] if not r["filtered"] else []
+    missing_ids = [f"0x{i:02X}" for i in sorted(INPUTS) if not r["accepted_ids"].get(f"0x{i:02X}")]
+    missing_ids += [f"0x{i:02X} (foreign)" for i in OUTPUTS if not r["foreign_ids"].get(f"0x{i:02X}")]
     missing_modes = [MODE_NAMES[m] for m in range(4) if not r["modes"].get(m)]
+    missing_other = [k for k in KINDS if not r["frame_kinds"].get(k)]
+    missing_other += [st for st in BUS_STATES if not r["bus_states"].get(st)]
+    missing_other += ["ForeignOutput cycle"] if not r["foreign_cycles"] else []
+    missing = missing_reasons or missing_ids or missing_modes or missing_other
     checks = [
         Check("fuzz: frames through the receive path", r["frames"] >= target,
               f"{r['frames']:,} >= {target:,} in {r['seconds']:.1f} s ({r['frames_per_s']:,.0f} frames/s)",
@@ -1010,30 +1273,40 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
         Check("fuzz: no invariant violation (domains, reference receiver)", r["violations"] == 0,
               f"{r['violations']} violations" + (f" {r['violations_by_kind']}" if r["violations"] else ""),
               {"examples": [e for e in r["examples"] if e["kind"] not in ("exception", "harness")][:3]}),
-        Check("fuzz: accounting exact (in = accepted + rejected by reason)",
+        Check("fuzz: accounting exact (received = accepted + rejected by reason + filtered)",
               r["accounting_exact"] and r["reference_agrees"],
-              f"{r['frames']:,} = {accepted:,} + {rej_total:,}; per-frame errors {r['accounting_errors']}",
-              {"rejected": r["rejected"]}),
-        Check("fuzz: coverage (every reject reason, every DBC message accepted, every mode)",
-              not (missing_reasons or missing_ids or missing_modes),
-              "complete" if not (missing_reasons or missing_ids or missing_modes) else
-              f"missing reasons {missing_reasons}, IDs {missing_ids}, modes {missing_modes}"),
+              f"{r['frames']:,} = {accepted:,} + {rej_total:,} + {r['filtered']:,}; "
+              f"per-frame errors {r['accounting_errors']}",
+              {"rejected": r["rejected"], "filtered": r["filtered"]}),
+        Check("fuzz: coverage (every reachable reject reason and filtered, every input accepted, both output IDs "
+              "foreign, every frame kind and bus state, ForeignOutput, every mode)",
+              not missing,
+              "complete" if not missing else
+              f"missing reasons {missing_reasons}, IDs {missing_ids}, modes {missing_modes}, other {missing_other}",
+              {"not reachable here": UNREACHABLE_REASONS}),
     ]
     md = [_SECTION_TEXT.format(target=target, mode="quick" if quick else "full", tape=TAPE_BYTES)]
-    md.append(md_table(["frames", "accepted", "rejected", "exceptions", "violations", "streams (examples)", "cycles",
-                        "time (s)", "frames/s", "workers"],
-                       [[f"{r['frames']:,}", f"{accepted:,}", f"{rej_total:,}", r["exceptions"], r["violations"],
-                         f"{r['streams']:,}", f"{r['cycles']:,}", f"{r['seconds']:.1f}", f"{r['frames_per_s']:,.0f}",
-                         r["workers"]]]))
-    md.append("\nRejected frames by reason (the receiver's counters; the reference receiver's prediction):\n\n")
-    reasons = list(codec.REJECT_REASONS) + [OTHER_FRAME]
+    md.append(md_table(["frames", "accepted", "rejected", "filtered", "exceptions", "violations",
+                        "streams (examples)", "cycles", "time (s)", "frames/s", "workers"],
+                       [[f"{r['frames']:,}", f"{accepted:,}", f"{rej_total:,}", f"{r['filtered']:,}", r["exceptions"],
+                         r["violations"], f"{r['streams']:,}", f"{r['cycles']:,}", f"{r['seconds']:.1f}",
+                         f"{r['frames_per_s']:,.0f}", r["workers"]]]))
+    md.append("\nRejected frames by reason (the runner's counters; the reference receiver's prediction):\n\n")
+    reasons = list(codec.REJECT_REASONS) + list(codec.SHELL_REJECT_REASONS)
     reasons += sorted(k for k in r["rejected"] if k not in reasons)
     md.append(md_table(["reason", "frames", "reference"],
-                       [[k, f"{r['rejected'].get(k, 0):,}", f"{r['expected'].get(k, 0):,}"] for k in reasons]
-                       + [[ACCEPTED, f"{accepted:,}", f"{r['expected'].get(ACCEPTED, 0):,}"]]))
-    md.append("\nFrames by kind of generator, accepted frames by message, cycles by mode:\n\n")
-    md.append(md_table(["kind", "frames"], [[k, f"{v:,}"] for k, v in sorted(r["kinds"].items())]))
+                       [[k + (f" (not reachable here: {UNREACHABLE_REASONS[k]})" if k in UNREACHABLE_REASONS else ""),
+                         f"{r['rejected'].get(k, 0):,}", f"{r['expected'].get(k, 0):,}"] for k in reasons]
+                       + [[FILTERED, f"{r['filtered']:,}", f"{r['expected'].get(FILTERED, 0):,}"],
+                          [ACCEPTED, f"{accepted:,}", f"{r['expected'].get(ACCEPTED, 0):,}"]]))
+    md.append("\nFrames by kind (the runner's tally), bus states announced by error frames, frames by generator, "
+              "accepted frames by message, foreign frames by ID, cycles by mode "
+              f"({r['foreign_cycles']:,} cycles with ForeignOutput set):\n\n")
+    md.append(md_table(["frame kind", "frames"], [[k, f"{r['frame_kinds'].get(k, 0):,}"] for k in KINDS]))
+    md.append("\n" + md_table(["bus state", "announced"], [[k, f"{r['bus_states'].get(k, 0):,}"] for k in BUS_STATES]))
+    md.append("\n" + md_table(["generator", "frames"], [[k, f"{v:,}"] for k, v in sorted(r["kinds"].items())]))
     md.append("\n" + md_table(["message", "accepted"], [[k, f"{v:,}"] for k, v in sorted(r["accepted_ids"].items())]))
+    md.append("\n" + md_table(["output ID", "foreign frames"], [[k, f"{v:,}"] for k, v in r["foreign_ids"].items()]))
     md.append("\n" + md_table(["mode", "cycles"], [[MODE_NAMES[m] if 0 <= int(m) < 4 else m, f"{v:,}"]
                                                   for m, v in sorted(r["modes"].items())]))
     if r["examples"]:
@@ -1047,26 +1320,42 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
 
 _SECTION_TEXT = """\
 {target:,} frames ({mode} mode) went through the real receive path: `MonitorRunner.drain()` on an in-memory
-python-can bus with the simulated clock (error/remote filter, `Receiver.accept` with the E2E CRC, alive counter,
-range and babbling checks over one period), and at every period boundary `MonitorRunner.cycle()`, which steps
-the core (`monitor.core.cycle.step`) with the latched reports.
+python-can bus with the simulated clock, and at every period boundary `MonitorRunner.cycle()`, which steps
+the core (`monitor.core.cycle.step`) with the latched reports, returns the cycle's record and sends
+BrakeDemand and MonitorStatus. The receive rules, in order, for each frame: (1) it is counted by kind
+(classical, 29-bit, FD, remote, error; an error frame also announces a bus state); (2) outside the receive
+filter (not an error frame, and 29-bit or an ID other than 0x010, 0x020-0x025, 0x030, 0x040) it is
+counted as filtered, not as a reject (live, it never reaches the process); (3) an FD, remote or error
+frame is refused (`fd_frame`, `remote_frame`, `error_frame`); (4) a frame on the monitor's own output IDs
+0x010 and 0x040 is foreign (`foreign_output`) and sets the ForeignOutput diagnostic in every cycle within
+one second (10 periods) of it; (5) the codec: on an input ID every frame counts for the rate policing
+before its length and CRC are looked at, and more than 3 frames within one period quarantine the ID for
+500 ms after its last excess frame (`rate_exceeded`, the channel's report withdrawn, its alive counter
+forgotten); then `wrong_length`, `bad_crc`, `repeated_counter`/`counter_jump`, `out_of_range`, and the
+report latched.
 
 **Frames.** One Hypothesis example is one stream: the table (m1, m2), the topology (3oo3, 2oo2), a traffic
 profile and a {tape:,}-byte string read as a program of nominal cycles with persistent faults, valid frames
-of every DBC message (encoded by the codec), mutated frames (bit flips, byte changes, truncation, extension up
-to 64 bytes, counter replay and jump, payload replacement, swapped IDs, 29-bit, remote, error and FD flags,
-CRC recomputed or not), fully random frames (11-bit, 29-bit and out-of-spec IDs, lengths 0..64), signals
-out of range with a valid CRC, babbling bursts, replays, and time steps, cycles and silences. Time moves as
-in the runner's loop with every cycle on time: frames arrive between two ticks, and the cycle at a tick sees
-what arrived up to it (deadline overruns are outside this part).
+of every DBC message (encoded by the codec; those on the output IDs are foreign), mutated frames (bit flips,
+byte changes, truncation, extension up to 64 bytes, counter replay and jump, payload replacement, swapped
+IDs, 29-bit, remote, error and FD flags, CRC recomputed or not), fully random frames (11-bit, 29-bit and
+out-of-spec IDs, lengths 0..64), hostile frames (CAN FD with valid payloads, remote requests and controller
+error frames on the monitored IDs, frames on 0x010/0x040, 29-bit and unmonitored neighbours of the
+monitored IDs), signals out of range with a valid CRC, babbling bursts (valid, with broken CRCs or lengths,
+or interleaved with FD/remote frames on the same ID), replays, and time steps, cycles and silences. Time
+moves as in the runner's loop with every cycle on time: frames arrive between two ticks, and the cycle at a
+tick sees what arrived up to it (deadline overruns are outside this part).
 
 **Checks after every frame and cycle.** No exception escapes the runner, and the core's fail-safe never
-swallows one. Each frame moves exactly one counter by one (accepted or one reject reason) and frames in =
-accepted + rejected per stream. A reference receiver written from the DBC and the documented rules (its own
-CRC-8 and bit unpacking) predicts every frame's outcome and the latched reports and TrainState: the receiver
-must agree. Latched reports stay in their domain (status 0..2, distance 0..60000 dm, closing
--15000..15000 cm/s, obstacle 0..2, tick <= now), and so do the core's state (mode, node < table nodes,
-counters) and outputs (demand 0..2, reasons < 1024, distance 0..60000 or 65535), with emergency in INIT,
-SAFE_STOP and while latched. A stream stops at its first fault.
+swallows one. Each frame moves exactly one counter by one (accepted, one reject reason, or filtered) and
+the kind tally by one, and frames received = accepted + rejected + filtered per stream. A reference
+receiver written from the DBC and the rules above (its own classification, receive filter, CRC-8 and bit
+unpacking) predicts every frame's outcome and kind, the bus state, the latched reports and TrainState:
+the runner must agree. Every cycle's record agrees with the core's outputs and the reference (TrainState
+speed, ForeignOutput), and the frames it sent carry a valid CRC, the demand and the ForeignOutput bit.
+Latched reports stay in their domain (status 0..2, distance 0..60000 dm, closing -15000..15000 cm/s,
+obstacle 0..2, tick <= now), and so do the core's state (mode, node < table nodes, counters) and outputs
+(demand 0..2, reasons < 8192, distance 0..60000 or 65535), with emergency in INIT, SAFE_STOP and while
+latched. A stream stops at its first fault.
 
 """
