@@ -30,6 +30,8 @@ from .codec import BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, Receiver, S
 
 FOREIGN_HOLD_CYCLES = 10   # ForeignOutput stays set this many cycles after the last foreign frame
 SEND_RETRY_S = 0.005       # a full transmit queue is retried this long, then counted as a failure
+SWEEP_FRAMES = 32          # frames already queued at the deadline still taken into the cycle,
+SWEEP_MS = 2               # ... for at most this long after it
 
 
 @dataclass
@@ -181,21 +183,29 @@ class MonitorRunner:
     # ------------------------------------------------------------------ receive
     def drain(self, until_ms: Optional[int] = None) -> None:
         """Accept frames until the clock reaches `until_ms` (simulated clock: until the bus is
-        empty). The deadline is checked after every frame, so a flood cannot hold the cycle."""
+        empty). The deadline is checked after every frame, so a flood cannot hold the cycle;
+        at the deadline, frames already queued are still taken (at most SWEEP_FRAMES, for at
+        most SWEEP_MS), so that a report that arrived just before the cycle is not left for
+        the next one."""
+        swept = 0
         while True:
             if self.clock.simulated or until_ms is None:
                 timeout = 0.0
             else:
-                timeout = (until_ms - self.clock.now_ms()) / 1000
-                if timeout <= 0:
-                    return
+                late = self.clock.now_ms() - until_ms
+                timeout = -late / 1000
+                if late >= 0:
+                    if swept >= SWEEP_FRAMES or late > SWEEP_MS:
+                        return
+                    swept += 1
+                    timeout = 0.0
             try:
                 msg = self.bus.recv(timeout=timeout)
             except can.CanError:
                 self.monitor.rejected["receive_error"] += 1
                 return
             if msg is None:
-                if self.clock.simulated or until_ms is None or self.clock.now_ms() >= until_ms:
+                if self.clock.simulated or until_ms is None or swept or self.clock.now_ms() >= until_ms:
                     return
                 continue
             self.frames_received += 1
