@@ -105,7 +105,3 @@ class FrameTally:
                 self.bus_state = state
                 self.bus_events[state] += 1
         return kind
-
-    def as_dict(self) -> dict:
-        return {"kinds": {k: self.kinds.get(k, 0) for k in KINDS}, "filtered": self.filtered,
-                "bus_state": self.bus_state, "bus_events": dict(sorted(self.bus_events.items()))}

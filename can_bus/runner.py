@@ -26,7 +26,7 @@ from monitor.core import cycle as core
 from monitor.core.types import EMERGENCY, NO_DISTANCE, R_PERCEPTOR, R_SAFE_STOP, R_STALE, Inputs, Outputs
 
 from . import frames
-from .codec import BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, Receiver, Sender, data_id
+from .codec import BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, Receiver, Sender, data_id, database
 
 FOREIGN_HOLD_CYCLES = 10   # ForeignOutput stays set this many cycles after the last foreign frame
 SEND_RETRY_S = 0.005       # a full transmit queue is retried this long, then counted as a failure
@@ -126,7 +126,8 @@ class MonitorCore:
                 return False
         self.own[fid] = OwnStream(counter, tick)
         if fid == BRAKE_DEMAND_ID:
-            self.recorded_demands.append((tick, (data[1] >> 4) & 0x3))
+            level = database().get_message_by_frame_id(fid).decode(data, decode_choices=False)["Level"]
+            self.recorded_demands.append((tick, level))
         return True
 
     def decide(self, tick: int, overruns: int = 0) -> tuple[Outputs, "CycleRecord"]:
@@ -165,7 +166,6 @@ class MonitorRunner:
         self.next_tick = self.clock.now_ms()
         self.table_hash = int(self.setup.table.sha256[:3], 16)
         self.last_send_ms: Optional[int] = None
-        self._stamp_tick = getattr(self.clock, "tick_of_stamp", None)
 
     @property
     def receiver(self) -> Receiver:
@@ -213,7 +213,7 @@ class MonitorRunner:
             # than that tick, never in the cycle's future; a frame that waited in the socket's
             # queue is as old as its kernel timestamp says (older: it ages sooner, the safe side)
             tick = min(self.clock.now_ms(), self.next_tick)
-            stamped = self._stamp_tick(msg.timestamp) if self._stamp_tick is not None else None
+            stamped = self.clock.tick_of_stamp(msg.timestamp)
             if stamped is not None:
                 tick = min(tick, stamped)
             self.monitor.ingest(msg, tick)
@@ -280,14 +280,12 @@ class MonitorRunner:
         self.send(out)
 
     # ------------------------------------------------------------------ loop
-    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False,
-            after_cycle: Optional[Callable[[CycleRecord], None]] = None) -> None:
-        """Real-time loop: take frames until each period boundary, then run the cycle."""
+    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False) -> None:
+        """Real-time loop: take frames until each period boundary, then run the cycle
+        (`on_cycle` sees every cycle's record)."""
         done = 0
         while (cycles is None or done < cycles) and not stop():
             self.drain(self.next_tick)
             self.clock.sleep_until_ms(self.next_tick)
-            rec = self.cycle()
+            self.cycle()
             done += 1
-            if after_cycle is not None:
-                after_cycle(rec)

@@ -291,7 +291,6 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
         rec_bus = open_bus(bus_kwargs)
         opened.append(rec_bus)
         recorder = Recorder(rec_bus, log_path, clock)
-        runner = MonitorRunner(mon_bus, setup, clock)
         period = setup.config.period_ms
         if scenario is not None:
             player_bus = open_bus(bus_kwargs)
@@ -305,9 +304,9 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
             if show is not None and len(runner.records) % 10 == 0:
                 show(status_line(rec, player, runner.monitor.tally.bus_state))
 
+        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=after_cycle)
         cycles = None if duration_s is None else int(duration_s * 1000 / period)
-        runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished),
-                   after_cycle=after_cycle)
+        runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished))
         stop.set()
         runner.send_final_emergency()
         if player_thread is not None:

@@ -368,6 +368,9 @@ class JumpingClock:
     def sleep_until_ms(self, tick: int) -> None:
         pass
 
+    def tick_of_stamp(self, stamp) -> None:
+        return None
+
 
 def virtual_pair():
     channel = f"t-{os.getpid()}-{next(_unique)}"
