@@ -309,7 +309,7 @@ def flood_inprocess(kind: str, seconds: float, threads: int, calm: float = 1.0, 
             "offered_rate": round(sum(offered) / (t1 - t0)), "handled_rate": round((r1 - r0) / (t1 - t0)),
             "max_gap_ms": largest([(b - a) * 1000 for a, b in zip(ts, ts[1:])]),
             "deadline_misses": runner.deadline_misses, "deadline_misses_in_flood": runner.deadline_misses - m0,
-            "max_send_gap_ms": getattr(runner, "max_send_gap_ms", None),
+            "max_send_gap_ms": runner.max_send_gap_ms,
             "emergency_share": round(during.count(2) / len(during), 2) if during else None,
             "demands": len(demands), "rejects": dict(runner.receiver.rejected)}
 

@@ -129,7 +129,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "bus_events": dict(sorted(runner.monitor.tally.bus_events.items())),
         "foreign_output_cycles": sum(1 for r in runner.records if r.foreign_output),
         "deadline_misses": runner.deadline_misses,
-        "max_send_gap_ms": runner.max_send_gap_ms,
+        "max_send_gap_ms": None if runner.clock.simulated else runner.max_send_gap_ms,   # wall time only
         "send_failures": runner.send_failures,
         "table": runner.setup.model,
         "table_sha256": runner.setup.table.sha256,
