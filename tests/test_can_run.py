@@ -527,3 +527,35 @@ def test_run_plot_speed_distance_follows_the_run(runs):
     sd = session.speed_distance(clear.runner, clear.player)
     assert sd.distance_m is None and sd.visible_m is None
     assert sd.position_m[-1] == pytest.approx(30.0 * (len(sd.speed_mps) - 1) * 0.1, rel=1e-9)
+
+
+class QueuedFrameBus:
+    """Hands out one frame that waited in a queue (its receive timestamp in the past), then
+    nothing: a unit-test stand-in for a flooded socket's backlog."""
+
+    def __init__(self, msg: can.Message) -> None:
+        self.queue = [msg]
+
+    def recv(self, timeout=None):
+        return self.queue.pop() if self.queue else None
+
+    def send(self, msg, timeout=None) -> None:
+        pass
+
+
+def test_a_frame_that_waited_in_the_queue_is_as_old_as_its_receive_timestamp():
+    """Under a flood a report may sit in the socket's queue; it must age from when the kernel
+    received it, not from when the monitor read it (older: stale sooner, the safe side)."""
+    import time
+
+    from can_bus.clock import WallClock
+
+    setup = setup_for("m2")
+    data = Sender().frame(0x20, report_signals(Report(PRESENT, 500, 0, 0, 0), 0))
+    msg = can.Message(arbitration_id=0x20, data=data, is_extended_id=False, timestamp=time.time() - 0.5)
+    clock = WallClock()
+    runner = MonitorRunner(QueuedFrameBus(msg), setup, clock)
+    runner.drain(clock.now_ms())                     # at the deadline: the queued frame is still taken
+    latched = runner.receiver.reports[0]
+    assert latched is not None and latched.distance_dm == 500
+    assert latched.tick <= clock.now_ms() - 490, (latched.tick, clock.now_ms())
