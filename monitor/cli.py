@@ -78,10 +78,34 @@ def _progress_printer(stream) -> Callable:
     return show
 
 
+def cmd_pareto(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from verification import pareto
+
+    if not args.model:
+        raise UserError("--pareto sweeps one of the papers' models: give --model m1 or m2")
+    grid = pareto.read_grid(args.grid) if args.grid else None
+    say = (lambda text: print(text, file=sys.stderr, flush=True))
+    out = Path(args.out) / f"pareto-{args.model}"
+    result = pareto.sweep(args.model, out, quick=True, time_budget=args.time_budget, grid=grid, progress=say)
+    files = [out / "frontier.json"]
+    files[0].write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    files.append(pareto.plot(result, out / "frontier.png"))
+    if args.json:
+        print(json.dumps({**result, "files": [str(f) for f in files]}))
+    else:
+        sys.stdout.write(pareto.render(result))
+        print("wrote " + "\n      ".join(str(f) for f in files) + f"\n      and one table folder per point under {out}")
+    return 0
+
+
 def cmd_solve(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .offline import models, pipeline, pomdp_file
+    if args.pareto:
+        return cmd_pareto(args)
     if args.pomdp:
         model = pomdp_file.read(args.pomdp)
         plan = models.plan_for_pomdp_file(args.config)
@@ -115,6 +139,28 @@ def cmd_solve(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(pipeline.summary_text(result))
         print(f"wrote            {paths['table']}\n                 {paths['pomdp']}\n                 {paths['summary']}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from verification import evaluate as ev
+
+    result = ev.evaluate(args.table, quick=args.quick, seed=args.seed,
+                         progress=None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True)))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "evaluate-" + (args.table if args.table in ("m1", "m2") else Path(args.table).name.split(".")[0])
+    files = [out / f"{stem}.json"]
+    files[0].write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    if not args.no_plot:
+        files.append(ev.plot(result, out / f"{stem}.png"))
+    if args.json:
+        print(json.dumps({**result, "files": [str(f) for f in files]}))
+    else:
+        sys.stdout.write(ev.render(result))
+        print("wrote " + "\n      ".join(str(f) for f in files))
     return 0
 
 
@@ -508,13 +554,45 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", metavar="FILE.toml", help="parameter and solver overrides")
     p.add_argument("--out", metavar="DIR", default="railguard-out", help="output folder (default: %(default)s)")
     p.add_argument("--seed", type=int, help="seed of the belief-set expansion (default 0)")
-    p.add_argument("--time-budget", type=_positive_float, metavar="S", help="stop solving after S seconds")
+    p.add_argument("--time-budget", type=_positive_float, metavar="S",
+                   help="bound the whole run (solve, compile, evaluate) to about S seconds; with --pareto, per point "
+                        "(default: the model's, m1 30 s, m2 60 s)")
     p.add_argument("--max-iterations", type=_positive_int, metavar="N", help="stop after N backups")
     p.add_argument("--max-beliefs", type=_positive_int, metavar="N", help="cap on the belief set")
     p.add_argument("--target-gap", type=_positive_float, metavar="X", help="stop when gap <= X * max(1, |upper|)")
     p.add_argument("--max-nodes", type=_positive_int, metavar="N", help="node budget of the compiled controller")
+    p.add_argument("--pareto", action="store_true",
+                   help="sweep the cost weights (collision, braking, demand change), solve each, judge each table "
+                        "like `railguard evaluate --quick` and write DIR/pareto-MODEL/frontier.json and frontier.png "
+                        "(p_hazard against unnecessary braking, baselines as points)")
+    p.add_argument("--grid", metavar="FILE.toml",
+                   help="with --pareto: the weights to sweep, e.g. braking_weight = [1.0, 2.0] and "
+                        "release_cost = [0.0, 1.0] (every combination); default: the built-in grid of the model")
     p.add_argument("--json", action="store_true", help="print one JSON object with the figures and paths")
     p.set_defaults(func=cmd_solve)
+
+    e = sub.add_parser(
+        "evaluate",
+        help="a table against the simple rules: risk, needless braking, stops, demand changes",
+        description="Evaluate a policy table and the baselines threshold, belief_tracking, always_emergency and "
+                    "never, each with the braking-curve supervision in front: p_hazard = P(hazard within 30 s) on "
+                    "the model's closed loop (exact for finite-state controllers, Monte Carlo for belief tracking); "
+                    "unnecessary_braking (fraction of obstacle-free time with a brake demand), stops_per_train_hour "
+                    "and demand_changes_per_encounter by Monte Carlo in the model's seed world (m1: seed 000's "
+                    "world with 2 %% phantoms and misses; m2: seed 001's), with 95 %% intervals. Writes "
+                    "DIR/evaluate-NAME.json and a plot of p_hazard against unnecessary braking.",
+        epilog="JSON shape: {\"table\": {...}, \"baselines\": {\"threshold\": {...}, ...}, ...}; every figure "
+               "has a *_ci half-width. A table file's belief_tracking baseline needs its .alphas.npz beside it "
+               "(railguard solve writes it).",
+    )
+    e.add_argument("table", metavar="m1|m2|TABLE", help="a shipped model name or a .table.rgt file of model m1 or m2")
+    e.add_argument("--quick", action="store_true", help="96 trains x 300 s, 2,000 episodes (default 288 x 600 s, 10,000)")
+    e.add_argument("--seed", type=int, default=12, help="seed of every Monte Carlo run (default: %(default)s)")
+    e.add_argument("--out", metavar="DIR", default="railguard-out", help="output folder (default: %(default)s)")
+    e.add_argument("--no-plot", action="store_true", help="do not draw the plot")
+    e.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    e.add_argument("--json", action="store_true", help="print one JSON object (the figures and the files written)")
+    e.set_defaults(func=cmd_evaluate)
 
     t = sub.add_parser("table", help="inspect compiled policy tables", description="Inspect compiled policy tables.")
     tsub = t.add_subparsers(dest="table_command", metavar="ACTION")
@@ -645,7 +723,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
     v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
-    v.add_argument("--part", action="append", choices=["closed_loop", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
+    v.add_argument("--part", action="append", choices=["closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
                    help="run only this part (repeatable)")
     v.add_argument("--json", action="store_true",
                    help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')

@@ -17,7 +17,8 @@ TABLES = ROOT / "monitor" / "tables"
 def independent_values(model, action, nxt) -> np.ndarray:
     """V[n, s] of a finite-state controller by a dense solve written from the definition:
 
-    V[n, s] = R[s, a_n] + g * sum_{s', o} T[a_n, s, s'] O[a_n, s', o] V[next[n, o], s'].
+    V[n, s] = R[s, a_n] + g * sum_{s', o} T[a_n, s, s'] O[a_n, s', o] (V[next[n, o], s'] - c [a_next < a_n])
+    with c the model's release cost (paid when the next node demands less).
     Independent of monitor.offline.controller (no shared code).
     """
     S = len(model.states)
@@ -37,6 +38,8 @@ def independent_values(model, action, nxt) -> np.ndarray:
                 for o in range(Z):
                     m = int(nxt[n][o])
                     M[i, m * S + s2] -= model.discount * t * model.O[a, s2, o]
+                    if int(action[m]) < a:
+                        r[i] -= model.discount * t * model.O[a, s2, o] * model.release_cost
     return np.linalg.solve(M, r).reshape(N, S)
 
 

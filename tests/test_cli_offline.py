@@ -129,7 +129,7 @@ def test_solve_flags_override_settings(capsys, tmp_path):
 
 def test_solve_with_config_solver_table(capsys, tmp_path):
     cfg = tmp_path / "c.toml"
-    cfg.write_text("alpha1_m = 400.0\n[solver]\nmax_iterations = 3\n", encoding="utf-8")
+    cfg.write_text("zones = \"paper\"\nalpha1_m = 400.0\n[solver]\nmax_iterations = 3\n", encoding="utf-8")
     code, out, err = run_main(capsys, ["solve", "--model", "m1", "--config", cfg, "--json", "--out", tmp_path / "o"])
     assert code == 0, err
     t = decode((tmp_path / "o" / "m1.table.rgt").read_bytes())

@@ -116,7 +116,8 @@ MAINTAIN, NOMINAL, EMERGENCY = range(3)
 
 
 def m1_build(**changes) -> POMDP:
-    return model1.build(replace(model1.Model1Params(), **changes))
+    """Model 1 on the paper's fixed zones (the kinematics below are checked against its numbers)."""
+    return model1.build(replace(model1.Model1Params(zones="paper"), **changes))
 
 
 def at_least_as_close(T_row: np.ndarray) -> np.ndarray:
@@ -219,7 +220,7 @@ def test_model1_more_noise_lowers_the_diagonal(changes, strictly_lower):
 
 
 def test_model1_crash_energy_weighting():
-    p = model1.Model1Params()
+    p = model1.Model1Params(zones="paper")
     costs = np.array(p.braking_costs)
     on = m1_build(crash_energy_weighting=True).R
     off = m1_build(crash_energy_weighting=False).R
@@ -255,9 +256,9 @@ def write_toml(tmp_path, text: str):
     return path
 
 
-def test_toml_override_changes_params_and_transitions(tmp_path, m1):
-    default_model, _ = m1
-    model, plan = load("m1", write_toml(tmp_path, "alpha1_m = 400.0\n"))
+def test_toml_override_changes_params_and_transitions(tmp_path):
+    default_model, _ = load("m1", write_toml(tmp_path, 'zones = "paper"\n'))
+    model, plan = load("m1", write_toml(tmp_path, 'zones = "paper"\nalpha1_m = 400.0\n'))
     assert model.params["alpha1_m"] == 400.0
     assert default_model.params["alpha1_m"] == 300.0
     assert model.params["alpha2_m"] == default_model.params["alpha2_m"]
@@ -267,7 +268,7 @@ def test_toml_override_changes_params_and_transitions(tmp_path, m1):
 
 
 def test_toml_integer_value_for_float_parameter_is_accepted(tmp_path):
-    model, _ = load("m1", write_toml(tmp_path, "alpha1_m = 400\n"))
+    model, _ = load("m1", write_toml(tmp_path, 'zones = "paper"\nalpha1_m = 400\n'))
     assert model.params["alpha1_m"] == 400.0 and isinstance(model.params["alpha1_m"], float)
 
 
@@ -303,7 +304,7 @@ def test_toml_wrong_type_is_refused(tmp_path, text, key):
 @pytest.mark.parametrize("alpha2", [300.0, 350.0])
 def test_alpha2_not_below_alpha1_is_a_model_error(tmp_path, alpha2):
     with pytest.raises(ModelError, match="alpha2_m"):
-        load("m1", write_toml(tmp_path, f"alpha2_m = {alpha2}\n"))
+        load("m1", write_toml(tmp_path, f'zones = "paper"\nalpha2_m = {alpha2}\n'))
 
 
 def test_malformed_toml_is_a_config_error(tmp_path):
@@ -402,8 +403,10 @@ def closer_under(model: POMDP, a: int, levels: tuple) -> float:
 
 
 @pytest.mark.parametrize("component", [TRACK, BRAKE])
-def test_model2_slippery_track_or_degraded_brakes_weaken_braking(m2, component):
-    model, _ = m2
+def test_model2_slippery_track_or_degraded_brakes_weaken_braking(component):
+    """On the paper's zones (where emergency braking on good rails just escapes the close
+    zone) adverse conditions must make the obstacle come closer."""
+    model = model2.build(model2.Model2Params(zones="paper"))
     strict = 0
     for s in model2.state_tuples():
         if s[component] != 0:
@@ -567,3 +570,59 @@ def test_r1_logistic_decreases_with_distance():
     assert np.all((r > 0) & (r <= 0.5 + 1e-15))
     assert r1_logistic(0.0, a1) == pytest.approx(0.5)
     assert r1_logistic(a1, a1) == pytest.approx(1.0 - 1.0 / (1.0 + np.exp(-5.0)))
+
+
+# ------------------------------------------------------------------ the monitor's zones (issue 12)
+
+def test_model1_zones_are_the_monitors_braking_curves():
+    """Model 1's zone limits are what the monitor cuts at the model's speed: alpha2 = EBI,
+    alpha1 = the service brake's EBI, warning = Config.warning_margin_dm beyond alpha1."""
+    from monitor.core.braking import ebi_dm
+    from monitor.core.config import Config
+
+    cfg = Config()
+    p = model1.Model1Params()
+    v = int(p.speed_mps * 100)
+    assert model1.zone_edges(p) == [0.0, ebi_dm(cfg, v, 0, 0, v, 0) / 10, ebi_dm(cfg, v, 0, 0, v, 0, True) / 10,
+                                    ebi_dm(cfg, v, 0, 0, v, 0, True) / 10 + cfg.warning_margin_dm / 10]
+    alpha1, alpha2, slope1, slope2, _ = model1.geometry(p)
+    # the slope is the curve's growth per m/s: EBI grows faster than v / a (latencies, margins)
+    assert slope2 > p.speed_mps / 2.4 and slope1 > slope2
+    T = m1_build(zones="monitor")
+    # with the monitor's zones emergency braking at the nominal 3 m/s^2 escapes EBI, maintaining does not
+    assert T.T[EMERGENCY, ATC, CRASH] == 0.0 < T.T[MAINTAIN, ATC, CRASH]
+    assert T.T[NOMINAL, ATC, CRASH] < T.T[MAINTAIN, ATC, CRASH]
+
+
+@pytest.mark.parametrize("name, key", [("m1", "alpha1_m = 400.0"), ("m2", "critical_length_m = 50.0")])
+def test_paper_lengths_are_refused_with_the_monitors_zones(tmp_path, name, key):
+    with pytest.raises(ModelError, match='zones = "paper"'):
+        load(name, write_toml(tmp_path, key + "\n"))
+
+
+def test_model2_levels_are_the_monitors_zones():
+    from monitor.offline.models.zones import monitor_zones
+
+    alpha1, alpha2, s1, s2, warning = monitor_zones(40.0)
+    assert model2.geometry(model2.Model2Params()) == (alpha2, alpha1 - alpha2, warning, s1, s2)
+
+
+def test_release_cost_is_charged_by_controllers_not_by_the_model(tmp_path):
+    """release_cost reaches the POMDP (and its digest), not its rewards, and is charged
+    only when the controller lowers its demand."""
+    from monitor.offline.controller import Controller, evaluate
+    from monitor.offline.pipeline import model_digest
+
+    plain = m1_build()
+    costly = m1_build(release_cost=3.0)
+    assert costly.release_cost == 3.0 and np.array_equal(costly.R, plain.R)
+    assert model_digest(costly) != model_digest(plain)
+    steady = Controller(np.array([1]), np.zeros((1, 4), dtype=np.int64), 0)
+    toggling = Controller(np.array([0, 2]), np.array([[1] * 4, [0] * 4]), 0)
+    assert np.allclose(evaluate(costly, steady), evaluate(plain, steady))          # never lowers: no cost
+    V0, V1 = evaluate(plain, toggling), evaluate(costly, toggling)
+    g = plain.discount
+    # node 1 (emergency) lowers to node 0 every time: g c now and every second step after;
+    # node 0 only raises (free) and pays from its next step on
+    assert np.allclose(V0[1] - V1[1], g * 3.0 / (1 - g * g))
+    assert np.allclose(V0[0] - V1[0], g * g * 3.0 / (1 - g * g))

@@ -1,4 +1,4 @@
-"""PBVI, the fast informed bound, controller compilation and exact evaluation."""
+"""HSVI/PBVI/Perseus, the fast informed and sawtooth upper bounds, controller compilation and exact evaluation."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -14,7 +14,8 @@ from monitor.offline.controller import (
 )
 from monitor.offline.models import Plan
 from monitor.offline.params import ConfigError
-from monitor.offline.solver import SolverSettings, fast_informed_bound, solve
+from monitor.offline.bounds import Dynamics, UpperBound, upper_backup
+from monitor.offline.solver import METHODS, SolverSettings, fast_informed_bound, solve
 from verification.monotone import check as monotone_check
 
 TIGER_VALUE = 19.37  # optimal discounted value of Tiger at the uniform belief (g = 0.95)
@@ -89,7 +90,8 @@ def test_fast_informed_bound_is_an_upper_bound(tiger, tiger_solved):
     Q = fast_informed_bound(tiger)
     assert np.allclose(Q, sol.upper_q)
     assert float((Q @ tiger.b0).max()) >= comp.value
-    assert sol.upper_bound == pytest.approx(float((Q @ tiger.b0).max()))
+    # the sawtooth points tighten it: the reported bound is below the FIB, above the controller
+    assert comp.value - 1e-9 <= sol.upper_bound <= float((Q @ tiger.b0).max()) - 1.0
     # V*(e_s) <= max_a Q(a, s), and every controller node is <= V*
     assert np.all(comp.values <= Q.max(axis=0)[None, :] + 1e-9)
 
@@ -146,7 +148,7 @@ def test_exact_evaluation_of_a_large_controller_uses_a_converged_solution(m2):
 
 def test_exact_value_agrees_with_monte_carlo_model1(m1_result):
     model, comp = m1_result.model, m1_result.compiled
-    episodes, horizon = 50000, 250
+    episodes, horizon = 50000, 400
     # truncation bias is at most g^H max|R| / (1 - g): keep it far below the sampling error
     bias = model.discount ** horizon * np.abs(model.R).max() / (1 - model.discount)
     ret = simulate(model, comp.controller, episodes, horizon, seed=20240611)
@@ -239,15 +241,18 @@ def test_model1_acceptance_controller_within_one_percent_of_lower_bound(m1_resul
 def test_model1_lower_bound_is_monotone_and_history_consistent(m1_result):
     sol = m1_result.solution
     lowers = [p.lower for p in sol.history]
+    uppers = [p.upper for p in sol.history]
     assert lowers == sorted(lowers)
+    assert uppers == sorted(uppers, reverse=True)     # the upper bound only tightens
     assert sol.history[-1].lower == sol.lower_bound
-    assert all(p.upper == sol.upper_bound for p in sol.history)
+    assert sol.history[-1].upper == sol.upper_bound
     assert sol.iterations == len(sol.history)
 
 
 def test_model1_solving_is_deterministic(m1):
     model, _ = m1
-    # 15 backups with expansions every 10: too few for any stall rule, so max_iterations stops it
+    # 15 HSVI trials: too few for the stall rule (2 x expand_every trials without change) and
+    # for a zero gap, so max_iterations stops it
     settings = SolverSettings(target_gap=0.0, time_budget_s=1e9, max_iterations=15, max_beliefs=60,
                               expand_every=10, seed=11)
     plan = Plan(settings, max_nodes=16)
@@ -328,3 +333,113 @@ def test_model2_small_monotone_run_is_monotone_exact_and_within_budget(m2):
     layer = ConditionLayer.of(model.observations, plan.conditions)
     with pytest.raises(ConfigError, match="at least 4"):
         compile_monotone(model, result.solution, layer, max_nodes=3)
+
+
+# ------------------------------------------------------------------ sawtooth upper bound (issue 12)
+
+
+def random_beliefs(S: int, n: int, seed: int) -> np.ndarray:
+    """Dirichlet beliefs, plus sparse ones (a random half of the states zeroed)."""
+    rng = np.random.default_rng(seed)
+    dense = rng.dirichlet(np.ones(S), size=n)
+    sparse = dense * (rng.random((n, S)) < 0.5)
+    sparse[np.arange(n), rng.integers(0, S, n)] += 0.1
+    return np.vstack([dense, sparse / sparse.sum(axis=1, keepdims=True)])
+
+
+@pytest.mark.parametrize("name", ["tiger", "m1"])
+def test_sawtooth_bound_is_an_upper_bound_and_never_above_the_fib(request, name, tiger_solved, m1_result):
+    """At random beliefs: controller value <= lower bound-or-better <= upper <= FIB. Every node
+    of the compiled controller is a policy, so max_n V[n] . b <= V*(b) <= upper(b)."""
+    if name == "tiger":
+        model, (sol, comp) = request.getfixturevalue("tiger"), tiger_solved
+    else:
+        model, sol, comp = m1_result.model, m1_result.solution, m1_result.compiled
+    B = random_beliefs(model.shape[0], 200, seed=3)
+    upper = sol.upper_value(B)
+    fib = (B @ sol.upper_q.T).max(axis=1)
+    assert sol.upper.size > 0                                    # the points are really used
+    assert np.all(upper >= (B @ comp.values.T).max(axis=1) - 1e-9)
+    assert np.all(upper >= sol.lower_value(B) - 1e-9)
+    assert np.all(upper <= fib + 1e-12)
+    assert np.any(upper < fib - 1e-6)                            # and tighter than the FIB somewhere
+    assert sol.upper_bound == pytest.approx(float(sol.upper_value(model.b0)[0]))
+
+
+def test_sawtooth_interpolates_points_and_corners():
+    """Two states, corners (10, 4), one point (0.5, 0.5) worth 5: at (0.75, 0.25) the ratio is
+    min(0.75 / 0.5, 0.25 / 0.5) = 0.5, so the value is 8.5 + 0.5 * (5 - 7) = 7.5."""
+    ub = UpperBound(np.array([[10.0, 4.0], [0.0, 0.0]]))
+    assert ub.add(np.array([0.5, 0.5]), 5.0)
+    assert not ub.add(np.array([0.5, 0.5]), 6.0)                 # looser: not stored
+    assert ub.sawtooth(np.array([[0.5, 0.5]]))[0] == pytest.approx(5.0)
+    assert ub.sawtooth(np.array([[1.0, 0.0], [0.0, 1.0]])).tolist() == [10.0, 4.0]
+    assert ub.sawtooth(np.array([[0.75, 0.25]]))[0] == pytest.approx(7.5)
+    # a one-hot point lowers its corner
+    assert ub.add(np.array([0.0, 1.0]), 3.0)
+    assert ub.corner.tolist() == [10.0, 3.0]
+    assert ub.sawtooth(np.array([[0.25, 0.75]]))[0] == pytest.approx(min(4.75, 4.75 + 0.5 * (5.0 - 6.5)))
+
+
+@pytest.mark.parametrize("name", ["tiger", "m1"])
+def test_sawtooth_equals_stored_values_at_points_and_corners(request, name, tiger_solved, m1_result):
+    sol = tiger_solved[0] if name == "tiger" else m1_result.solution
+    ub = sol.upper
+    ub.prune()                                                   # no point dominated by the others
+    B, v = ub.beliefs, ub.values
+    assert len(v) > 0
+    assert np.allclose(ub.sawtooth(B), v, rtol=0, atol=1e-9)
+    assert np.allclose(ub.sawtooth(np.eye(ub.S)), ub.corner)
+    assert np.all(ub.corner <= sol.upper_q.max(axis=0) + 1e-12)
+
+
+def test_upper_backup_of_the_fib_alone_stays_below_the_fib(tiger):
+    """One point-based backup on the FIB is <= the FIB at that belief (it is the FIB's own
+    backup with a max moved outside), and >= the known optimum."""
+    dyn = Dynamics(tiger)
+    ub = UpperBound(fast_informed_bound(tiger))
+    for p in (0.5, 0.7, 0.97):
+        b = np.array([p, 1 - p])
+        q, _, _ = upper_backup(dyn, ub, b)
+        assert q.max() <= ub.fib(b[None, :])[0] + 1e-9
+    q, _, _ = upper_backup(dyn, ub, tiger.b0)
+    assert q.max() >= TIGER_VALUE - 0.01
+
+
+def test_default_settings_certify_tiger_and_model1_within_one_percent(tiger_solved, m1_result):
+    for sol in (tiger_solved[0], m1_result.solution):
+        assert sol.stop_reason == "target_gap"
+        assert sol.gap <= 0.01 * max(1.0, abs(sol.upper_bound))
+    sol = tiger_solved[0]
+    assert sol.lower_bound <= TIGER_VALUE + 0.01 and sol.upper_bound >= TIGER_VALUE - 0.01
+
+
+def test_hsvi_is_the_default_and_deterministic(tiger):
+    assert SolverSettings().method == "hsvi" and set(METHODS) == {"hsvi", "perseus", "pbvi"}
+    settings = SolverSettings(target_gap=0.0, time_budget_s=1e9, max_iterations=12, seed=5)
+    a, b = solve(tiger, settings), solve(tiger, settings)
+    assert a.stop_reason == b.stop_reason == "max_iterations" and a.iterations == 12
+    assert a.alphas.tobytes() == b.alphas.tobytes() and a.witnesses.tobytes() == b.witnesses.tobytes()
+    assert a.upper.beliefs.tobytes() == b.upper.beliefs.tobytes()
+    assert a.upper_bound == b.upper_bound and a.lower_bound == b.lower_bound
+
+
+def test_time_budget_and_deadline_stop_the_solver(m2, tiger):
+    model, _ = m2
+    sol = solve(model, SolverSettings(target_gap=0.0, time_budget_s=0.5, max_iterations=10**6))
+    assert sol.stop_reason == "time_budget" and sol.iterations < 10**6
+    assert sol.lower_bound <= sol.upper_bound
+    import time
+    sol = solve(tiger, SolverSettings(target_gap=0.0, time_budget_s=1e9, max_iterations=10**6),
+                deadline=time.perf_counter() + 0.3)
+    assert sol.stop_reason == "time_budget" and sol.iterations < 10**6
+    assert sol.lower_bound <= TIGER_VALUE + 0.01 <= sol.upper_bound + 0.02
+
+
+@pytest.mark.parametrize("method", ["perseus", "pbvi"])
+def test_pbvi_and_perseus_still_bound_tiger(tiger, method):
+    sol = solve(tiger, SolverSettings(method=method, max_iterations=60, max_beliefs=40, expand_every=5))
+    assert sol.lower_bound <= TIGER_VALUE + 0.01 <= sol.upper_bound
+    assert sol.lower_bound > 15.0                                # it really solved something
+    assert sol.stop_reason in {"target_gap", "time_budget", "converged", "max_iterations"}
+    assert sol.upper_bound == pytest.approx(float((sol.upper_q @ tiger.b0).max()))   # the FIB alone

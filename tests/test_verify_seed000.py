@@ -43,7 +43,7 @@ def test_quick_section_passes_and_writes_its_figures(quick_section):
         assert (out / name).read_bytes()[:8] == PNG_MAGIC, name
         assert f"]({name})" in sec.markdown, name
     assert "| collisions |" in sec.markdown and "300" in sec.markdown
-    phantoms = next(c for c in sec.checks if "stops per train-hour" in c.name)
+    phantoms = next(c for c in sec.checks if "stops without an obstacle per train-hour" in c.name)
     assert phantoms.details["after_revocable"] < phantoms.details["after_held"]
     assert "stops to standstill per train-hour" in sec.markdown and "75a5c9f" in sec.markdown
     assert messages, "progress was never called"
@@ -54,7 +54,10 @@ def test_phantoms_stop_the_train_only_when_the_emergency_is_held():
     revocable = simulate(seed000.PHANTOMS, 40, 60.0, seed=9)
     held = simulate(seed000.PHANTOMS_HELD, 40, 60.0, seed=9)
     assert revocable.metrics["false_onsets"] > 50
-    assert seed000.stops_per_hour(held) > 10 * max(1.0, seed000.stops_per_hour(revocable))
+    # stops with no obstacle on the line (phantoms); since issue 12 the table also stops for
+    # real obstacles that stay reported, which is not what this is about
+    assert seed000.stops_per_hour(held, "stops_no_obstacle") > 4 * max(1.0, seed000.stops_per_hour(revocable, "stops_no_obstacle"))
+    assert held.metrics["stops"] >= held.metrics["stops_no_obstacle"] > 0
 
 
 def test_vectorised_run_agrees_with_the_real_core(small_run):

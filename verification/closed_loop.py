@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from monitor.core.table import decode
 from monitor.offline.controller import Controller, evaluate
+from monitor.offline.controller import rewards as controller_rewards
 from monitor.offline.models import load
 from monitor.offline.pipeline import ALPHAS_SUFFIX, model_digest, read_alphas
 from monitor.tables import read
@@ -115,7 +116,7 @@ def storm(model, ctrl: Controller, P: sp.csr_matrix, target: np.ndarray, steps: 
     S = model.shape[0]
     NS = ctrl.nodes * S
     g = model.discount
-    r = model.R[np.tile(np.arange(S), ctrl.nodes), np.repeat(ctrl.action, S)]
+    r = controller_rewards(model, ctrl)     # R[s, a_n], less the expected release cost
     shift = max(0.0, -float(r.min()))       # Storm's reachability rewards want r >= 0
 
     def dtmc(matrix: sp.csr_matrix, labels: dict, rewards=None):

@@ -148,15 +148,33 @@ def latch(latched, calm, demand, speed_cms, revocable: bool, confirm: int):
     return held, calm, np.where(held, EMERGENCY, demand)
 
 
-class VectorMonitor:
-    """n monitors stepped together; every channel of train i reports the same thing."""
+class TablePolicy:
+    """The table step of the core on arrays: node = next[node, obs], demand = action[node]."""
 
-    def __init__(self, setup: cycle.Setup, n: int):
+    def __init__(self, action, nxt, start: int, n: int):
+        self.action = np.asarray(action, dtype=I64)
+        self.next = np.asarray(nxt, dtype=I64)
+        self.node = np.full(n, start, dtype=I64)
+
+    def step(self, obs: np.ndarray, applied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(demand, node) after this cycle's observation; `applied` (the demand sent last
+        cycle) is what a belief-tracking policy predicts with, a table needs only its node."""
+        self.node = self.next[self.node, obs]
+        return self.action[self.node], self.node
+
+
+class VectorMonitor:
+    """n monitors stepped together; every channel of train i reports the same thing.
+
+    `policy` replaces the table step (anything with TablePolicy's `step`): the evaluation
+    runs baselines and the belief-tracking policy behind the same supervision. Default: the
+    setup's table."""
+
+    def __init__(self, setup: cycle.Setup, n: int, policy=None):
         self.setup = setup
         self.cfg = setup.config
-        self.action = np.asarray(setup.action, dtype=I64)
-        self.next = np.asarray(setup.next, dtype=I64)
-        self.node = np.full(n, setup.table.start, dtype=I64)
+        self.policy = policy or TablePolicy(setup.action, setup.next, setup.table.start, n)
+        self.applied = np.zeros(n, dtype=I64)
         self.latched = np.zeros(n, dtype=bool)
         self.calm = np.zeros(n, dtype=I64)
         self.m2 = setup.model == "m2"
@@ -187,16 +205,16 @@ class VectorMonitor:
             obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake
         else:
             obs = zone
-        self.node = self.next[self.node, obs]
-        table = self.action[self.node]
+        table, node = self.policy.step(obs, self.applied)
         demand = np.maximum(table, env)
         was = self.latched
         self.latched, self.calm, final = latch(was, self.calm, demand, speed,
                                                cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
+        self.applied = final
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
                    | np.where(env == SERVICE, R_SBI, 0) | np.where(self.latched & was & (demand != EMERGENCY), R_LATCH, 0)
                    | np.where(warn, R_WARNING, 0))
-        return {"demand": final, "reasons": reasons, "observation": obs, "node": self.node.copy(), "distance_dm": dist,
+        return {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True), "distance_dm": dist,
                 "warning": warn, "table": table, "curves": c, "alpha1_dm": alpha1, "alpha2_dm": alpha2}
 
 

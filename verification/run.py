@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .report import Progress, Section, timed, write_report
 
-PARTS = ("closed_loop", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof")
+PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof")
 CONFIGURED = ("campaign",)      # parts whose section takes the monitor's Config (`--braking FILE.toml`)
 
 

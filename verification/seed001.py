@@ -27,7 +27,6 @@ core, and the invariants of the supervision and the latch are checked on every s
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from importlib import resources
 import time
@@ -42,12 +41,15 @@ from monitor.core.config import Config
 from monitor.core.config import RELEASE_REVOCABLE
 from monitor.core.types import EMERGENCY, R_LATCH
 from monitor.offline.models import model2
-from monitor.offline.pipeline import ALPHAS_SUFFIX, model_digest, read_alphas
+from monitor.offline.models import rebuild
+from monitor.offline.params import override
+from monitor.offline.pipeline import ALPHAS_SUFFIX, read_alphas
 from monitor.offline.risk import RISK_WEIGHTS
 from monitor.tables import read
 
 from .fastcore import VectorMonitor, agrees_with_core, zone_alphas, zone_of
 from .report import Check, Progress, Section, md_table
+from .world_metrics import PolicyCost
 
 TITLE = "Seed 001 reproduced: Model 2 metrics (time with obstacles, risk accuracy, mean reward)"
 PAPER = {"obstacles": 75.0, "accuracy": 96.3, "reward": -3.19}
@@ -192,19 +194,15 @@ class Run:
     sample: dict                      # (steps, recorded trains): truth and estimates, for figures
     columns: np.ndarray               # the recorded trains
     belief_trains: int
+    cost: Optional[PolicyCost] = None # what the policy cost, per train (world_metrics)
 
 
-def load_setup() -> tuple:
-    """The monitor setup with the shipped m2 table, and the Model 2 it was solved for
-    (rebuilt from the table header's parameters and checked against its model_sha256)."""
-    setup = cycle.create(Config(), read("m2"), "m2")
-    header = setup.table.header
-    fields = {f.name for f in dataclasses.fields(model2.Model2Params)}
-    params = model2.Model2Params(**{k: tuple(v) if isinstance(v, list) else v
-                                    for k, v in header["params"].items() if k in fields})
-    model = model2.build(params)
-    if model_digest(model) != header.get("model_sha256"):
-        raise RuntimeError("Model 2 rebuilt from the m2 table's parameters does not match its model_sha256")
+def load_setup(table: Optional[bytes] = None) -> tuple:
+    """The monitor setup with the shipped m2 table (or `table`), and the Model 2 it was solved
+    for (rebuilt from the table header's parameters and checked against its model_sha256)."""
+    setup = cycle.create(Config(), read("m2") if table is None else table, "m2")
+    model = rebuild(setup.table.header)          # refused unless it hashes to the header's model_sha256
+    params = override(model2.Model2Params(), {"zones": "paper", **model.params})
     return setup, params, model
 
 
@@ -274,10 +272,14 @@ def _misperceive(rng, true, size, eps):
     return np.where(wrong, (true + shift) % size, true)
 
 
-def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None) -> Run:
-    """The Monte Carlo run: n trains, each one episode of `steps` cycles (see the module doc)."""
+def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None, table: Optional[bytes] = None,
+             policy=None) -> Run:
+    """The Monte Carlo run: n trains, each one episode of `steps` cycles (see the module doc).
+    `table` (default the shipped m2) and `policy` (default: that table; see
+    fastcore.TablePolicy) choose what proposes the demand behind the supervision;
+    `Run.cost` counts what it cost per train."""
     t0 = time.perf_counter()
-    setup, params, model = load_setup()
+    setup, params, model = load_setup(table)
     cfg = setup.config
     rng = np.random.default_rng(s.seed)
     n, dt = s.trains, cfg.period_ms / 1000.0
@@ -324,8 +326,8 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None) -> R
     pipeline = [np.zeros(n, dtype=np.int64) for _ in range(delay)]   # demands on their way to the brakes
     emergency_run = np.zeros(n, dtype=np.int64)
 
-    mon = VectorMonitor(setup, n)
-    table_action = np.asarray(setup.action, dtype=np.int64)
+    mon = VectorMonitor(setup, n, policy)
+    cost = PolicyCost(n, dt, encounters=np.ones(n))
     filt = BeliefFilter(model, nb, s.chunk) if nb else None
     last_action = np.zeros(n, dtype=np.int64)
     rew = {name: reward_by_category(name) for name in ("paper", "corrected")}
@@ -380,8 +382,9 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None) -> R
         # ---- the monitor
         out = mon.step(present, rep_dist, speed_cms, rep_closing, p_kind, p_track, p_brake)
         demand, obs, node = out["demand"], out["observation"], out["node"]
-        table_act = table_action[node]
+        table_act = out["table"]
         applied = demand if s.apply == "monitor" else table_act
+        cost.cycle(present, applied)
 
         # invariants of the monitor, on every step of every train: emergency inside EBI, at
         # least service inside SBI (the curves of the reported picture); an emergency released
@@ -481,6 +484,7 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None) -> R
         present = (present & ~leave) | come
         encounter += come
         encounters_total += int(come.sum())
+        cost.moved(v, v_new, come)
         v = v_new
         # track and brakes (eq. 6: the brakes degrade faster on a slippery track)
         ut, ub = rng.random(n), rng.random(n)
@@ -516,7 +520,7 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None) -> R
         "action_by_risk": ab, "actions": ab.sum(axis=0), "risk": ab.sum(axis=1), "table_actions": table_count, **inv,
     }
     return Run(s, time.perf_counter() - t0, gap_s, expected, metrics, per_train, counts, collisions, trace, sample,
-               cols, nb)
+               cols, nb, cost)
 
 
 def standard_error(values: np.ndarray) -> float:

@@ -46,7 +46,7 @@ class Config(NamedTuple):
     emergency_release: int = RELEASE_REVOCABLE  # 1: revocable when the cause is gone; 0: at standstill
     release_confirm_cycles: int = 5    # cycles without an emergency cause before a revocable release
     # --- Model 2 observation and voting
-    warning_margin_dm: int = 2000      # table zones: warning zone length beyond alpha1
+    warning_margin_dm: int = 10000     # table zones: warning zone length beyond alpha1
     fast_closing_cms: int = 2000       # Model 2: closing speed from which an obstacle is "fast"
     safe_reaction: int = EMERGENCY     # demand on a system error with a degraded channel
     topology: str = "3oo3"

@@ -35,6 +35,11 @@ class POMDP:
     discount: float
     b0: np.ndarray
     params: Mapping[str, Any] = field(default_factory=dict)
+    # Cost of each lowering of the action (actions ordered by strength: hysteresis that
+    # never delays an onset). A controller remembers its action in its node, so compiling
+    # and evaluating it charge the cost; belief-point backups do not see it, which keeps
+    # their upper bound an upper bound.
+    release_cost: float = 0.0
 
     def __post_init__(self) -> None:
         for label in ("states", "actions", "observations"):
@@ -65,6 +70,10 @@ class POMDP:
         if not (0.0 <= d < 1.0):
             raise ModelError(f"{self.name}: discount {d} outside [0, 1)")
         object.__setattr__(self, "discount", d)
+        c = float(self.release_cost)
+        if not (c >= 0.0 and np.isfinite(c)):
+            raise ModelError(f"{self.name}: release_cost {c} must be a finite number >= 0")
+        object.__setattr__(self, "release_cost", c)
         self._check_stochastic(self.T, "T", lambda a, s: f"T[{self.actions[a]}, {self.states[s]}, :]")
         self._check_stochastic(self.O, "O", lambda a, s: f"O[{self.actions[a]}, {self.states[s]}, :]")
         self._check_stochastic(self.b0[None, None, :], "start", lambda a, s: "start belief")

@@ -425,6 +425,8 @@ def dumps(model: POMDP) -> str:
     out = [
         f"# written by railguard: model {title}",
         "# R(s, a) is the expected immediate reward, written as R: a : s : * : *",
+        *([f"# railguard's controllers also pay {num(model.release_cost)} each time they lower the action (not in this format)"]
+          if model.release_cost else []),
         f"discount: {num(model.discount)}",
         "values: reward",
         *(f"{kind}: {decls[kind]}" for kind in decls),

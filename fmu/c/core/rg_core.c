@@ -45,7 +45,7 @@ void rg_config_default(rg_config *cfg)
     cfg->warning_ms = 2000;
     cfg->emergency_release = RG_RELEASE_REVOCABLE;
     cfg->release_confirm_cycles = 5;
-    cfg->warning_margin_dm = 2000;
+    cfg->warning_margin_dm = 10000;
     cfg->fast_closing_cms = 2000;
     cfg->safe_reaction = RG_EMERGENCY;
     cfg->modules = 3;

@@ -39,13 +39,14 @@ MODELS = {
         "seed 000: 4-state anti-collision POMDP (zones)",
         model1.Model1Params(),
         model1.build,
-        Plan(SolverSettings(max_beliefs=200, max_iterations=400, expand_every=10), max_nodes=8),
+        Plan(SolverSettings(max_beliefs=200, max_iterations=400, expand_every=10), max_nodes=32),
     ),
     "m2": ModelSpec(
         "seed 001: 144-state anti-collision POMDP (distance, speed, type, track, brake)",
         model2.Model2Params(),
         model2.build,
-        Plan(SolverSettings(max_beliefs=500, max_iterations=100, expand_every=5, time_budget_s=300.0), max_nodes=255,
+        Plan(SolverSettings(max_beliefs=500, max_iterations=100000, expand_every=5, time_budget_s=60.0, target_gap=0.01),
+             max_nodes=255,
              conditions=model2.CONDITIONS),
     ),
 }
@@ -81,6 +82,27 @@ def load(name: str, config_path: Optional[str | Path] = None) -> tuple[POMDP, Pl
     return spec.build(p), plan
 
 
+def rebuild(header: dict) -> POMDP:
+    """The model a table was solved for, rebuilt from its header's parameters; refused
+    unless it hashes to the header's model_sha256 (the table answers exactly this model)."""
+    from ..pipeline import model_digest
+
+    name = header.get("model")
+    if name not in MODELS:
+        raise ConfigError(f"the table's model {name!r} is not one of the papers' models ({', '.join(MODELS)})")
+    spec = MODELS[name]
+    params = dict(header.get("params", {}))
+    params.setdefault("zones", "paper")      # tables solved before the monitor's zones were the default
+    try:
+        model = spec.build(override(spec.params, params))
+    except (ConfigError, ValueError) as exc:
+        raise ConfigError(f"the table's model parameters cannot be rebuilt: {exc}") from None
+    if model_digest(model) != header.get("model_sha256"):
+        raise ConfigError(f"{name} rebuilt from the table's parameters does not hash to its model_sha256 "
+                          "(solved with another version of the model)")
+    return model
+
+
 def plan_for_pomdp_file(config_path: Optional[str | Path]) -> Plan:
     """Settings for a model read from a .pomdp file: only a [solver] table is allowed."""
     if not config_path:
@@ -100,4 +122,4 @@ def default_plan() -> Plan:
     return Plan(SolverSettings(), max_nodes=255)
 
 
-__all__ = ["MODELS", "Plan", "load", "plan_from", "plan_for_pomdp_file", "default_plan"]
+__all__ = ["MODELS", "Plan", "load", "plan_from", "plan_for_pomdp_file", "default_plan", "rebuild"]

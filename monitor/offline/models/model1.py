@@ -15,11 +15,15 @@ import numpy as np
 
 from ..pomdp import POMDP, ModelError
 from .zones import (
+    ZONE_SOURCES,
     boundary_deceleration,
     crossing_probabilities,
     gaussian_zone_confusion,
     interval_overlap,
     margin_step,
+    monitor_zones,
+    paper_margin_step,
+    paper_slope,
 )
 
 STATES = ("Safe", "ObstacleDetected", "AboutToCrash", "Crash")
@@ -32,6 +36,8 @@ SAFE, WARNING, EMERGENCY, CRITICAL = range(4)
 class Model1Params:
     """Defaults are seed 000's Table 1 and section V; additions are marked (ours)."""
 
+    zones: str = "monitor"                       # (ours) "monitor": the monitor's zones from the braking
+                                                 # curves; "paper": alpha1_m / alpha2_m / warning_length_m
     speed_mps: float = 40.0                      # Table 1, initial train speed
     time_step_s: float = 0.1                     # Table 1, time sample
     alpha1_m: float = 300.0                      # Table 1, nominal braking distance
@@ -40,6 +46,9 @@ class Model1Params:
     decelerations_mps2: tuple = (0.0, 1.0, 3.0)  # Table 1, action forces (magnitudes)
     rewards: tuple = (10.0, -10.0, -100.0, -1000.0)  # eq. 13 / Table 1
     braking_costs: tuple = (0.0, 1.0, 5.0)       # (ours) cost per step of each action
+    collision_weight: float = 1.0                # (ours) x the Crash reward: the Pareto sweep's risk weight
+    braking_weight: float = 1.0                  # (ours) x braking_costs: the sweep's braking weight
+    release_cost: float = 5.0                    # (ours) paid by the controller each time it lowers its demand
     crash_energy_weighting: bool = True          # (ours) Crash penalty scaled by impact energy
     discount: float = 0.95                       # Table 1
     obstacle_fraction: float = 0.2               # section V-B, obstacles ~20 % of the time
@@ -50,6 +59,11 @@ class Model1Params:
     missed_detection: float = 0.02               # (ours) obstacle not reported per step
 
     def check(self) -> None:
+        if self.zones not in ZONE_SOURCES:
+            raise ModelError(f"unknown zones {self.zones!r}; known: {', '.join(ZONE_SOURCES)}")
+        if self.zones == "monitor" and (self.alpha1_m, self.alpha2_m, self.warning_length_m) != (300.0, 100.0, 200.0):
+            raise ModelError("alpha1_m, alpha2_m and warning_length_m are the paper's fixed zones: they apply with "
+                             "zones = \"paper\"; with zones = \"monitor\" the braking curves set them")
         positive = ("speed_mps", "time_step_s", "alpha1_m", "alpha2_m", "warning_length_m", "obstacle_duration_s")
         for name in positive:
             if not getattr(self, name) > 0:
@@ -69,28 +83,44 @@ class Model1Params:
             raise ModelError("noise_sigma_m and appear_offset_m must be >= 0")
         if any(c < 0 for c in self.braking_costs):
             raise ModelError(f"braking_costs must be >= 0, got {self.braking_costs}")
+        for name in ("collision_weight", "braking_weight", "release_cost"):
+            if not getattr(self, name) >= 0:
+                raise ModelError(f"{name} must be >= 0, got {getattr(self, name)}")
+
+
+def geometry(p: Model1Params) -> tuple[float, float, float, float, float]:
+    """(alpha1, alpha2, slope1, slope2, warning length): the zone limits at the model's
+    speed and how fast each recedes per m/s of speed lost (see zones.margin_step)."""
+    if p.zones == "monitor":
+        return monitor_zones(p.speed_mps)
+    v = p.speed_mps
+    return p.alpha1_m, p.alpha2_m, paper_slope(v, p.alpha1_m), paper_slope(v, p.alpha2_m), p.warning_length_m
 
 
 def zone_edges(p: Model1Params) -> list[float]:
     """Distance edges of critical, emergency, warning (ascending from the train head)."""
-    return [0.0, p.alpha2_m, p.alpha1_m, p.alpha1_m + p.warning_length_m]
+    alpha1, alpha2, _, _, warning = geometry(p)
+    return [0.0, alpha2, alpha1, alpha1 + warning]
 
 
 def transition(p: Model1Params) -> np.ndarray:
     """T[a, s, s'] from margin kinematics, obstacle appearance and clearance."""
     dt, v = p.time_step_s, p.speed_mps
-    a1 = boundary_deceleration(v, p.alpha1_m)
-    a2 = boundary_deceleration(v, p.alpha2_m)
+    alpha1, alpha2, slope1, slope2, warning = geometry(p)
     p_clear = min(1.0, dt / p.obstacle_duration_s)
     p_appear = p_clear * p.obstacle_fraction / (1.0 - p.obstacle_fraction)
-    mid = 0.5 * (p.alpha1_m + p.alpha2_m)
+    mid = 0.5 * (alpha1 + alpha2)
     edges = zone_edges(p)
     appear = interval_overlap(mid, mid + p.appear_offset_m, edges)  # critical, emergency, warning
-    lengths = {CRITICAL: p.alpha2_m, EMERGENCY: p.alpha1_m - p.alpha2_m, WARNING: p.warning_length_m}
+    lengths = {CRITICAL: alpha2, EMERGENCY: alpha1 - alpha2, WARNING: warning}
     T = np.zeros((3, 4, 4))
     for a, b in enumerate(p.decelerations_mps2):
-        d1 = margin_step(v, v, b, a1, dt)  # margin to alpha1 (and to d_w, which moves with it)
-        d2 = margin_step(v, v, b, a2, dt)  # margin to alpha2
+        if p.zones == "paper":   # margin to alpha1 (and to d_w, which moves with it), to alpha2
+            d1 = paper_margin_step(v, v, b, boundary_deceleration(v, alpha1), dt)
+            d2 = paper_margin_step(v, v, b, boundary_deceleration(v, alpha2), dt)
+        else:
+            d1 = margin_step(v, slope1, b, dt)
+            d2 = margin_step(v, slope2, b, dt)
         motion = np.zeros((4, 4))
         motion[SAFE, SAFE] = 1.0 - p_appear
         motion[SAFE, CRITICAL] += p_appear * appear[0]
@@ -143,12 +173,12 @@ def reward(p: Model1Params) -> np.ndarray:
     v = p.speed_mps
     for a, b in enumerate(p.decelerations_mps2):
         for s in range(4):
-            r = p.rewards[s]
+            r = p.rewards[s] * (p.collision_weight if s == CRITICAL else 1.0)
             if s == CRITICAL and p.crash_energy_weighting:
                 # mean kinetic energy at impact, obstacle uniform in [0, alpha2], relative to v^2
-                d = np.linspace(0.0, p.alpha2_m, 1001)
+                d = np.linspace(0.0, geometry(p)[1], 1001)
                 r *= float(np.mean(np.maximum(0.0, v * v - 2.0 * b * d)) / (v * v))
-            R[s, a] = r - p.braking_costs[a]
+            R[s, a] = r - p.braking_weight * p.braking_costs[a]
     return R
 
 
@@ -167,4 +197,5 @@ def build(p: Model1Params = Model1Params()) -> POMDP:
         discount=p.discount,
         b0=np.array([1.0, 0.0, 0.0, 0.0]),
         params=as_dict(p),
+        release_cost=p.release_cost,
     )

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..pomdp import POMDP, ModelError
 from ..risk import risk_category, risk_score
-from .zones import boundary_deceleration, crossing_probabilities, margin_step
+from .zones import (ZONE_SOURCES, boundary_deceleration, crossing_probabilities, margin_step, monitor_zones,
+                    paper_margin_step, paper_slope)
 
 DISTANCE = ("far", "medium", "close", "critical")
 REL_SPEED = ("away", "slow", "fast")
@@ -53,6 +54,10 @@ class Model2Params:
     """Seed 001 fixes the structure; every number below is ours unless marked."""
 
     reward: str = "corrected"                    # "paper" = eq. 10 as printed
+    zones: str = "paper"                         # "monitor": the levels are the monitor's zones from the
+                                                 # braking curves; "paper": the three *_length_m below (the
+                                                 # default until a table on the monitor's zones beats the
+                                                 # simple rules: docs/models.md section 7)
     discount: float = 0.95                       # seed 000 Table 1 (seed 001 gives none)
     time_step_s: float = 0.1                     # seed 000 Table 1; the monitor's cycle
     speed_mps: float = 40.0                      # seed 000 Table 1
@@ -77,8 +82,16 @@ class Model2Params:
     brake_recovery: float = 0.001                # P(degraded -> normal) per step
     misperception: tuple = (0.02, 0.05, 0.05, 0.02, 0.01)  # eq. 9, epsilon per component
     start_conditions: str = "any"                # see START_CONDITIONS and docs/models.md section 6
+    collision_weight: float = 1.0                # x the penalties for braking less than the risk asks (Pareto sweep)
+    braking_weight: float = 1.0                  # x the penalties for braking more than the risk asks
+    release_cost: float = 0.0                    # paid by the controller each time it lowers its demand
 
     def check(self) -> None:
+        if self.zones not in ZONE_SOURCES:
+            raise ModelError(f"unknown zones {self.zones!r}; known: {', '.join(ZONE_SOURCES)}")
+        if self.zones == "monitor" and (self.critical_length_m, self.close_length_m, self.medium_length_m) != (100.0, 200.0, 200.0):
+            raise ModelError("critical_length_m, close_length_m and medium_length_m apply with zones = \"paper\"; "
+                             "with zones = \"monitor\" the braking curves set them")
         if self.reward not in REWARD_VARIANTS:
             raise ModelError(f"unknown reward variant {self.reward!r}; known: {', '.join(REWARD_VARIANTS)}")
         if self.start_conditions not in START_CONDITIONS:
@@ -106,26 +119,42 @@ class Model2Params:
                 raise ModelError(f"{name} must be probabilities summing to 1, got {v}")
         if any(d <= 0 for d in self.obstacle_duration_s):
             raise ModelError(f"obstacle_duration_s must be > 0, got {self.obstacle_duration_s}")
+        for name in ("collision_weight", "braking_weight", "release_cost"):
+            if not getattr(self, name) >= 0:
+                raise ModelError(f"{name} must be >= 0, got {getattr(self, name)}")
         for i, e in enumerate(self.misperception):
             if not 0.0 <= e < 1.0:
                 raise ModelError(f"misperception[{i}] must be in [0, 1), got {e}")
 
 
-def _distance_row(p: Model2Params, dist: int, closing: float, braking: float) -> np.ndarray:
-    """P(next distance level | level, closing speed, achieved braking) from margin kinematics."""
-    v, dt = p.speed_mps, p.time_step_s
+def geometry(p: Model2Params) -> tuple[float, float, float, float, float]:
+    """(critical, close, medium lengths, slope of alpha1, slope of alpha2): the distance
+    levels and how fast their limits recede per m/s of speed lost (zones.margin_step)."""
+    if p.zones == "monitor":
+        alpha1, alpha2, s1, s2, warning = monitor_zones(p.speed_mps)
+        return alpha2, alpha1 - alpha2, warning, s1, s2
+    v = p.speed_mps
     alpha2 = p.critical_length_m
     alpha1 = alpha2 + p.close_length_m
-    a1 = boundary_deceleration(v, alpha1)
-    a2 = boundary_deceleration(v, alpha2)
-    m1 = margin_step(closing, v, braking, a1, dt)  # to alpha1 and to d_w (moves with alpha1)
-    m2 = margin_step(closing, v, braking, a2, dt)
+    return alpha2, p.close_length_m, p.medium_length_m, paper_slope(v, alpha1), paper_slope(v, alpha2)
+
+
+def _distance_row(p: Model2Params, dist: int, closing: float, braking: float) -> np.ndarray:
+    """P(next distance level | level, closing speed, achieved braking) from margin kinematics."""
+    dt, v = p.time_step_s, p.speed_mps
+    critical, close, medium, slope1, slope2 = geometry(p)
+    if p.zones == "paper":   # to alpha1 (and to d_w, which moves with it), to alpha2
+        m1 = paper_margin_step(closing, v, braking, boundary_deceleration(v, critical + close), dt)
+        m2 = paper_margin_step(closing, v, braking, boundary_deceleration(v, critical), dt)
+    else:
+        m1 = margin_step(closing, slope1, braking, dt)
+        m2 = margin_step(closing, slope2, braking, dt)
     # level: (lower step, upper step, length); far's lower boundary is d_w, no upper
     spec = {
         0: (m1, 0.0, p.far_length_m),
-        1: (m1, m1, p.medium_length_m),
-        2: (m2, m1, p.close_length_m),
-        3: (0.0, m2, p.critical_length_m),
+        1: (m1, m1, medium),
+        2: (m2, m1, close),
+        3: (0.0, m2, critical),
     }
     lo, hi, length = spec[dist]
     down, up = crossing_probabilities(lo, hi, length)
@@ -206,15 +235,23 @@ def observation(p: Model2Params) -> np.ndarray:
     return np.repeat(M[None], 3, axis=0)
 
 
+# The response each risk category asks for (eq. 10's cases): maintain, nominal, emergency, emergency.
+RESPONSE = (0, 1, 2, 2)
+
+
 def reward(p: Model2Params) -> np.ndarray:
+    """R[s, a] of eq. 10 (variant p.reward); a penalty for braking less than the state's risk
+    asks is x collision_weight, one for braking more x braking_weight."""
     R = np.zeros((len(state_tuples()), 3))
     for i, s in enumerate(state_tuples()):
         cat = risk_category(risk_score(*s))
         for a in range(3):
             if p.reward == "paper":
-                R[i, a] = PAPER_REWARD[cat].get(a, 0.0)
+                r = PAPER_REWARD[cat].get(a, 0.0)
             else:
-                R[i, a] = CORRECTED_REWARD[cat - 1][a]
+                r = CORRECTED_REWARD[cat - 1][a]
+            want = RESPONSE[cat - 1]
+            R[i, a] = r * (p.collision_weight if a < want else p.braking_weight if a > want else 1.0)
     return R
 
 
@@ -245,4 +282,5 @@ def build(p: Model2Params = Model2Params()) -> POMDP:
         discount=p.discount,
         b0=start_belief(p),
         params=as_dict(p),
+        release_cost=p.release_cost,
     )

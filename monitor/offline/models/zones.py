@@ -19,14 +19,52 @@ import numpy as np
 from math import erf, sqrt
 
 
+ZONE_SOURCES = ("monitor", "paper")
+
+
 def boundary_deceleration(speed_mps: float, distance_m: float) -> float:
     """The deceleration a braking distance stands for at this speed: v^2 / (2 d)."""
     return speed_mps ** 2 / (2.0 * distance_m)
 
 
-def margin_step(closing_mps: float, speed_mps: float, braking_mps2: float, boundary_decel: float, dt: float) -> float:
-    """Change of the margin to a braking-distance boundary over one step (negative: closer)."""
+def margin_step(closing_mps: float, slope_s: float, braking_mps2: float, dt: float) -> float:
+    """Change of the margin to a braking-distance boundary over one step (negative: closer):
+    the obstacle closes at `closing_mps`, the boundary recedes at slope x braking, `slope_s`
+    being d(boundary distance)/d(speed). For v^2 / 2a the slope is v / a."""
+    return (-closing_mps + slope_s * braking_mps2) * dt
+
+
+def paper_margin_step(closing_mps: float, speed_mps: float, braking_mps2: float, boundary_decel: float, dt: float) -> float:
+    """margin_step for a pure braking distance v^2 / 2a, in the operation order the tables
+    solved before the monitor's zones used (so their models rebuild bit for bit)."""
     return (-closing_mps + speed_mps * braking_mps2 / boundary_decel) * dt
+
+
+def paper_slope(speed_mps: float, distance_m: float) -> float:
+    """d(alpha)/dv of a pure braking distance alpha = v^2 / 2a at this speed: v / a = 2 alpha / v."""
+    return speed_mps / boundary_deceleration(speed_mps, distance_m)
+
+
+def monitor_zones(speed_mps: float, warning_m: float | None = None) -> tuple[float, float, float, float, float]:
+    """(alpha1, alpha2, slope1, slope2, warning length) of the monitor's own zones for a
+    static obstacle at this speed, from the braking curves of the shipped declaration
+    (monitor.core.braking, docs/supervision.md): alpha2 = EBI, alpha1 = the service brake's
+    EBI, both under normal conditions with a fresh report; slopes d(alpha)/dv by a central
+    difference over +-1 m/s (the obstacle static: closing speed = train speed)."""
+    from monitor.core.braking import ebi_dm
+    from monitor.core.config import Config
+
+    cfg = Config()
+    v = int(round(speed_mps * 100))
+
+    def alpha(cms: int, service: bool) -> float:
+        return ebi_dm(cfg, cms, 0, 0, cms, 0, service) / 10.0
+
+    a2, a1 = alpha(v, False), max(alpha(v, True), alpha(v, False))
+    lo = max(v - 100, 0)
+    s2 = (alpha(v + 100, False) - alpha(lo, False)) / ((v + 100 - lo) / 100.0)
+    s1 = (alpha(v + 100, True) - alpha(lo, True)) / ((v + 100 - lo) / 100.0)
+    return a1, a2, s1, s2, cfg.warning_margin_dm / 10.0 if warning_m is None else warning_m
 
 
 def crossing_probabilities(step_lower: float, step_upper: float, length: float) -> tuple[float, float]:

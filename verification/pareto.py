@@ -1,0 +1,187 @@
+"""`railguard solve --pareto`: the cost weights swept, each table judged on risk and needless braking.
+
+A reward is a choice; the frontier shows what the choice costs. For each weight vector
+(collision, braking, demand change: the models' `collision_weight`, `braking_weight`,
+`release_cost`) the model is solved and compiled, and its table is judged exactly as
+`railguard evaluate` judges it: p_hazard exact on the closed loop with the supervision in
+front, unnecessary braking by Monte Carlo in the seed world (the quick size, the same seed
+for every point: common random numbers). The frontier is the set of points no other point
+beats on both. A table may ship only from the frontier and only if it dominates
+`threshold` and `belief_tracking` (ACAS X's acceptance rule); `recommended` is the frontier
+point that does so with the least unnecessary braking.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Callable, Optional
+
+from monitor.core.table import decode
+from monitor.offline import pipeline
+from monitor.offline.models import MODELS
+from monitor.offline.params import override
+
+from .evaluate import (SEED, SIZES, _policies, belief_episodes, draw_policies, hazard_axes, hazard_belief, hazard_exact,
+                       load_target, no_worse, world_cost)
+from .closed_loop import HORIZON_S
+
+GRIDS = {
+    "m1": [{"braking_weight": b, "release_cost": c} for c in (0.0, 5.0, 20.0) for b in (0.5, 1.0, 2.0, 4.0)],
+    # Model 2 on the monitor's zones (its default stays on the paper's until a table there
+    # earns its place: docs/models.md section 7)
+    "m2": [{"zones": "monitor", "collision_weight": w} for w in (1.0, 2.0, 4.0)]
+          + [{"zones": "monitor", "braking_weight": 0.5}],
+}
+JUDGED = ("threshold", "belief_tracking")
+WEIGHTS = ("collision_weight", "braking_weight", "release_cost")
+
+
+def read_grid(path) -> list[dict]:
+    """A TOML file of weight lists (keys WEIGHTS, each a list of numbers >= 0) as every
+    combination of them."""
+    import itertools
+
+    from monitor.offline.params import ConfigError, read_toml
+
+    data = read_toml(path)
+    unknown = sorted(set(data) - set(WEIGHTS))
+    if unknown or not data:
+        raise ConfigError(f"{path}: a grid sets lists of {', '.join(WEIGHTS)}"
+                          + (f"; unknown: {', '.join(unknown)}" if unknown else ""))
+    for key, values in data.items():
+        if not isinstance(values, list) or not values or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0 for v in values):
+            raise ConfigError(f"{path}: {key} must be a non-empty list of numbers >= 0")
+    keys = list(data)
+    return [dict(zip(keys, map(float, combo))) for combo in itertools.product(*(data[k] for k in keys))]
+
+
+def solve_point(name: str, weights: dict, out_dir: Path, time_budget: Optional[float]) -> Path:
+    """Solve and compile the model with these weights; the table's path (alphas beside it)."""
+    spec = MODELS[name]
+    model = spec.build(override(spec.params, weights))
+    plan = spec.plan if time_budget is None else replace(spec.plan, settings=replace(spec.plan.settings, time_budget_s=time_budget))
+    result = pipeline.run(model, plan)
+    return pipeline.write(result, out_dir)["table"]
+
+
+def judge(table: Path, quick: bool, seed: int) -> dict:
+    target = load_target(str(table))
+    steps = int(round(HORIZON_S / 0.1))
+    row = {"p_hazard": hazard_exact(target.model, target.controller, steps), "nodes": target.controller.nodes,
+           "sha256": decode(target.table).sha256}
+    row.update(world_cost(target, None, SIZES["quick" if quick else "full"], seed))
+    return row
+
+
+def baselines(table: Path, quick: bool, seed: int) -> dict:
+    """The baselines judged the same way (belief tracking with this table's alpha vectors)."""
+    target = load_target(str(table))
+    sizes = SIZES["quick" if quick else "full"]
+    steps = int(round(HORIZON_S / 0.1))
+    out = {}
+    for name, (ctrl, policy) in _policies(target).items():
+        if name == "table":
+            continue
+        if ctrl is not None:
+            row = {"p_hazard": hazard_exact(target.model, ctrl, steps), "p_hazard_ci": 0.0}
+        else:
+            p, ci = hazard_belief(target.model, *target.alphas, steps, belief_episodes(target.model, sizes), seed)
+            row = {"p_hazard": p, "p_hazard_ci": ci}
+        row.update(world_cost(target, policy, sizes, seed))
+        out[name] = row
+    return out
+
+
+def dominates(a: dict, b: dict) -> bool:
+    """a no worse than b on both p_hazard and unnecessary braking (evaluate.no_worse)."""
+    return all(no_worse(a, b).values())
+
+
+def frontier(points: list[dict]) -> list[int]:
+    """Indices of the points that no other point beats on both (strictly on one)."""
+    keep = []
+    for i, p in enumerate(points):
+        beaten = any(dominates(q, p) and (q["p_hazard"] < p["p_hazard"] or q["unnecessary_braking"] < p["unnecessary_braking"])
+                     for j, q in enumerate(points) if j != i)
+        if not beaten:
+            keep.append(i)
+    return sorted(keep, key=lambda i: points[i]["unnecessary_braking"])
+
+
+def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[float] = None,
+          grid: Optional[list[dict]] = None, seed: int = SEED, progress: Optional[Callable[[str], None]] = None) -> dict:
+    say = progress or (lambda text: None)
+    grid = GRIDS[name] if grid is None else grid
+    out_dir = Path(out_dir)
+    t0 = time.perf_counter()
+    points = []
+    for i, weights in enumerate(grid):
+        say(f"pareto {name}: point {i + 1}/{len(grid)} {weights}: solve and compile")
+        table = solve_point(name, weights, out_dir / f"{name}-point{i:02d}", time_budget)
+        say(f"pareto {name}: point {i + 1}/{len(grid)}: judging")
+        points.append({"weights": weights, "table": str(table), **judge(table, quick, seed)})
+    default = next((i for i, w in enumerate(grid) if all(v == 1.0 for k, v in w.items() if k in ("collision_weight", "braking_weight"))), 0)
+    say(f"pareto {name}: baselines (belief tracking with point {default}'s alpha vectors)")
+    base = baselines(Path(points[default]["table"]), quick, seed)
+    front = frontier(points)
+    ok = [i for i in front if all(dominates(points[i], base[b]) for b in JUDGED if b in base)]
+    return {
+        "model": name,
+        "horizon_s": HORIZON_S,
+        "quick": quick,
+        "seed": seed,
+        "points": points,
+        "frontier": front,
+        "dominating": ok,
+        "recommended": min(ok, key=lambda i: (points[i]["unnecessary_braking"], points[i]["p_hazard"])) if ok else None,
+        "baselines": base,
+        "seconds": time.perf_counter() - t0,
+    }
+
+
+def render(result: dict) -> str:
+    lines = [f"Pareto sweep of {result['model']}: {len(result['points'])} weight vectors, p_hazard (exact, "
+             f"{result['horizon_s']:g} s) against unnecessary braking (seed world)", ""]
+    lines.append(f"{'#':>3} {'weights':<48}{'p_hazard':>12}{'unnecessary':>14}{'nodes':>7}  ")
+    for i, p in enumerate(result["points"]):
+        mark = ("*" if i == result["recommended"] else "F") if i in result["frontier"] else " "
+        w = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in p["weights"].items())
+        lines.append(f"{i:>3} {w:<48}{p['p_hazard']:>12.6f}{p['unnecessary_braking']:>14.5f}{p['nodes']:>7}  {mark}")
+    lines.append("")
+    for name, b in result["baselines"].items():
+        lines.append(f"    {name:<48}{b['p_hazard']:>12.6f}{b['unnecessary_braking']:>14.5f}")
+    lines.append("")
+    lines.append("F: on the frontier; *: recommended (on the frontier, no worse than threshold and belief_tracking "
+                 "on both, least unnecessary braking)")
+    if result["recommended"] is None:
+        lines.append("no frontier point dominates both threshold and belief_tracking")
+    return "\n".join(lines) + "\n"
+
+
+def plot(result: dict, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = result["points"]
+    fig, ax = plt.subplots(figsize=(7.5, 5.2), constrained_layout=True)
+    ax.scatter([p["unnecessary_braking"] for p in pts], [p["p_hazard"] for p in pts], color="tab:gray", s=25,
+               label="solved tables")
+    front = result["frontier"]
+    ax.plot([pts[i]["unnecessary_braking"] for i in front], [pts[i]["p_hazard"] for i in front], "o-", color="tab:blue",
+            label="frontier")
+    if result["recommended"] is not None:
+        r = pts[result["recommended"]]
+        ax.scatter([r["unnecessary_braking"]], [r["p_hazard"]], marker="*", s=220, color="tab:green", zorder=5,
+                   label="recommended")
+    draw_policies(ax, result["baselines"], highlight="", color="tab:red")
+    hazard_axes(ax, result["horizon_s"], f"{result['model']}: tables over the cost weights, and the baselines "
+                                         "(lower left is better)")
+    ax.legend(loc="upper right")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

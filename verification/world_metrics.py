@@ -1,0 +1,66 @@
+"""What a policy costs in a seed world, counted per train so that every figure has a
+confidence interval: braking without an obstacle, stops, and demand changes per encounter.
+
+Each figure is a ratio of sums over trains (X / Y); trains are independent, so its 95 %
+interval comes from the linearised ratio estimator: SE = sqrt(n / (n - 1) sum (X_i - r Y_i)^2) / sum Y_i.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+Z95 = 1.96
+
+
+def ratio(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """(sum x / sum y, half-width of its 95 % interval) over independent trains."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    total = float(y.sum())
+    if total <= 0:
+        return float("nan"), float("nan")
+    r = float(x.sum()) / total
+    n = len(x)
+    if n < 2:
+        return r, float("nan")
+    e = x - r * y
+    return r, Z95 * math.sqrt(n / (n - 1) * float((e * e).sum())) / total
+
+
+class PolicyCost:
+    """Per-train counters, updated once per cycle with the world's truth and the demand sent."""
+
+    def __init__(self, n: int, dt: float, encounters: np.ndarray | None = None):
+        self.dt = dt
+        self.free = np.zeros(n)              # cycles without an obstacle on the line
+        self.brake_free = np.zeros(n)        # ... with a brake demand
+        self.stops = np.zeros(n)             # moving -> standstill
+        self.changes = np.zeros(n)           # demand different from the cycle before
+        self.encounters = np.zeros(n) if encounters is None else np.asarray(encounters, dtype=float).copy()
+        self.cycles = np.zeros(n)
+        self.prev = np.zeros(n, dtype=np.int64)
+
+    def cycle(self, obstacle: np.ndarray, demand: np.ndarray) -> None:
+        free = ~np.asarray(obstacle, dtype=bool)
+        self.free += free
+        self.brake_free += free & (demand > 0)
+        self.changes += demand != self.prev
+        self.prev = np.asarray(demand, dtype=np.int64).copy()
+        self.cycles += 1
+
+    def moved(self, v_before: np.ndarray, v_after: np.ndarray, new_encounters: np.ndarray) -> None:
+        self.stops += (v_before > 0) & (v_after <= 0)
+        self.encounters += new_encounters
+
+    def figures(self) -> dict:
+        """The three Monte Carlo figures, each with its 95 % half-width (`*_ci`)."""
+        out = {}
+        hours = self.cycles * self.dt / 3600.0
+        for key, x, y in (("unnecessary_braking", self.brake_free, self.free),
+                          ("stops_per_train_hour", self.stops, hours),
+                          ("demand_changes_per_encounter", self.changes, self.encounters)):
+            value, ci = ratio(x, y)
+            out[key], out[key + "_ci"] = value, ci
+        out["train_hours"] = float(hours.sum())
+        out["encounters"] = int(self.encounters.sum())
+        return out
