@@ -25,9 +25,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from monitor.core.table import decode
+from monitor.core.table import TableError, decode
 from monitor.offline.controller import Controller
 from monitor.offline.models import rebuild
+from monitor.offline.params import ConfigError
 from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas
 from monitor.tables import SHIPPED, read
 
@@ -69,8 +70,11 @@ def load_target(spec: str) -> Target:
     """A shipped table by model name or a table file; the model must be m1 or m2 (the seed
     worlds are theirs) and rebuild to the header's model_sha256."""
     data = read(spec)
-    table = decode(data)
-    model = rebuild(table.header)
+    try:
+        table = decode(data)
+        model = rebuild(table.header)
+    except (TableError, ConfigError) as exc:
+        raise type(exc)(f"{spec}: {exc}") from None
     ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
     if spec in SHIPPED:
         alphas_path = resources.files("monitor.tables").joinpath(f"{spec}{ALPHAS_SUFFIX}")
