@@ -11,11 +11,11 @@ import pytest
 
 from conftest import ROOT
 from monitor.offline.controller import Controller
-from monitor.offline.models import MODELS, load
+from monitor.offline.models import load
 from verification import evaluate as ev
 from verification import pareto
 from verification.fastcore import TablePolicy, VectorMonitor
-from verification.policies import BeliefTracking, finite_baselines, supervised, supervision_floor, threshold
+from verification.policies import BeliefTracking, finite_baselines, supervised, supervision_floor
 from verification.world_metrics import PolicyCost, ratio
 
 ENV = {**os.environ, "MPLBACKEND": "Agg"}
