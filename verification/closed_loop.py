@@ -94,9 +94,9 @@ def bounded_reach(P: sp.csr_matrix, target: np.ndarray, steps: int) -> np.ndarra
     return x
 
 
-def exact(model, ctrl: Controller, steps: int) -> tuple[Figures, sp.csr_matrix, np.ndarray]:
-    """(figures, two-phase chain, hazard labels): the value by the exact evaluation the
-    compiler uses (a linear solve), the crash probability by bounded reachability."""
+def hazard_within(model, ctrl: Controller, steps: int) -> tuple[float, sp.csr_matrix, np.ndarray]:
+    """(P(hazard within `steps` cycles) from the start node and belief, two-phase chain,
+    hazard labels), by bounded reachability."""
     S = model.shape[0]
     NS = ctrl.nodes * S
     P = two_phase_chain(model, ctrl)
@@ -104,9 +104,15 @@ def exact(model, ctrl: Controller, steps: int) -> tuple[Figures, sp.csr_matrix, 
     for s in hazard_states(model):
         target[s:NS:S] = True
     x = bounded_reach(P, target, 2 * steps)
+    return float(model.b0 @ x[ctrl.start * S:(ctrl.start + 1) * S]), P, target
+
+
+def exact(model, ctrl: Controller, steps: int) -> tuple[Figures, sp.csr_matrix, np.ndarray]:
+    """(figures, two-phase chain, hazard labels): the value by the exact evaluation the
+    compiler uses (a linear solve), the crash probability by bounded reachability."""
+    crash, P, target = hazard_within(model, ctrl, steps)
     V = evaluate(model, ctrl)
-    start = slice(ctrl.start * S, (ctrl.start + 1) * S)
-    return Figures(float(model.b0 @ V[ctrl.start]), float(model.b0 @ x[start])), P, target
+    return Figures(float(model.b0 @ V[ctrl.start]), crash), P, target
 
 
 def storm(model, ctrl: Controller, P: sp.csr_matrix, target: np.ndarray, steps: int) -> Figures:

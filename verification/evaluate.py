@@ -33,7 +33,7 @@ from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas
 from monitor.tables import SHIPPED, read
 
 from . import seed000, seed001
-from .closed_loop import HORIZON_S, bounded_reach, hazard_states, two_phase_chain
+from .closed_loop import HORIZON_S, hazard_states, hazard_within
 from .fastcore import TablePolicy
 from .policies import BASELINES, BeliefTracking, finite_baselines, supervised, supervision_floor
 from .world_metrics import Z95
@@ -88,14 +88,7 @@ def load_target(spec: str) -> Target:
 
 def hazard_exact(model, ctrl: Controller, steps: int) -> float:
     """P(hazard within `steps` cycles) of the controller with the supervision in front."""
-    sup = supervised(ctrl, supervision_floor(model))
-    S = model.shape[0]
-    NS = sup.nodes * S
-    target = np.zeros(2 * NS, dtype=bool)
-    for s in hazard_states(model):
-        target[s:NS:S] = True
-    x = bounded_reach(two_phase_chain(model, sup), target, 2 * steps)
-    return float(model.b0 @ x[sup.start * S:(sup.start + 1) * S])
+    return hazard_within(model, supervised(ctrl, supervision_floor(model)), steps)[0]
 
 
 def hazard_belief(model, alphas: np.ndarray, actions: np.ndarray, steps: int, episodes: int, seed: int) -> tuple[float, float]:
@@ -152,28 +145,38 @@ def _policies(target: Target) -> dict[str, tuple[Optional[Controller], Optional[
     return out
 
 
-def evaluate(spec: str, quick: bool = False, seed: int = SEED,
-             progress: Optional[Callable[[str], None]] = None) -> dict:
-    """`{"table": {...}, "baselines": {...}, ...}`: every METRICS figure for the table and each
-    baseline (belief_tracking is absent when the table's alpha vectors are not beside it)."""
-    say = progress or (lambda text: None)
-    sizes = SIZES["quick" if quick else "full"]
-    target = load_target(spec)
+def judge(target: Target, sizes: Sizes, seed: int, names: Optional[tuple[str, ...]] = None,
+          say: Callable[[str], None] = lambda text: None) -> dict[str, dict]:
+    """name -> the METRICS figures of each policy in `names` (default: the table and every
+    baseline available): p_hazard on the model's closed loop, the rest in the seed world."""
     model = target.model
     steps = int(round(HORIZON_S / 0.1))
     rows: dict[str, dict] = {}
-    t0 = time.perf_counter()
     for name, (ctrl, policy) in _policies(target).items():
-        say(f"evaluate {spec}: {name}: hazard on the model's closed loop")
+        if names is not None and name not in names:
+            continue
+        say(f"evaluate {target.label}: {name}: hazard on the model's closed loop")
         if ctrl is not None:
             row = {"p_hazard": hazard_exact(model, ctrl, steps), "p_hazard_ci": 0.0, "p_hazard_how": "exact"}
         else:
             episodes = belief_episodes(model, sizes)
             p, ci = hazard_belief(model, *target.alphas, steps, episodes, seed)
             row = {"p_hazard": p, "p_hazard_ci": ci, "p_hazard_how": f"Monte Carlo, {episodes} episodes"}
-        say(f"evaluate {spec}: {name}: {sizes.trains} trains x {sizes.seconds:.0f} s in the {model.name} seed world")
+        say(f"evaluate {target.label}: {name}: {sizes.trains} trains x {sizes.seconds:.0f} s in the {model.name} seed world")
         row.update(world_cost(target, policy, sizes, seed))
         rows[name] = row
+    return rows
+
+
+def evaluate(spec: str, quick: bool = False, seed: int = SEED,
+             progress: Optional[Callable[[str], None]] = None) -> dict:
+    """`{"table": {...}, "baselines": {...}, ...}`: every METRICS figure for the table and each
+    baseline (belief_tracking is absent when the table's alpha vectors are not beside it)."""
+    sizes = SIZES["quick" if quick else "full"]
+    target = load_target(spec)
+    model = target.model
+    t0 = time.perf_counter()
+    rows = judge(target, sizes, seed, say=progress or (lambda text: None))
     table = rows.pop("table")
     missing = [b for b in BASELINES if b not in rows]
     return {

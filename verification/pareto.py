@@ -22,8 +22,8 @@ from monitor.offline import pipeline
 from monitor.offline.models import MODELS
 from monitor.offline.params import override
 
-from .evaluate import (SEED, SIZES, _policies, belief_episodes, draw_policies, hazard_axes, hazard_belief, hazard_exact,
-                       load_target, no_worse, world_cost)
+from . import evaluate
+from .evaluate import SEED, SIZES, draw_policies, hazard_axes, load_target, no_worse
 from .closed_loop import HORIZON_S
 
 GRIDS = {
@@ -66,32 +66,18 @@ def solve_point(name: str, weights: dict, out_dir: Path, time_budget: Optional[f
     return pipeline.write(result, out_dir)["table"]
 
 
-def judge(table: Path, quick: bool, seed: int) -> dict:
+def judge_table(table: Path, quick: bool, seed: int) -> dict:
+    """The table's figures, judged as `railguard evaluate` judges it."""
     target = load_target(str(table))
-    steps = int(round(HORIZON_S / 0.1))
-    row = {"p_hazard": hazard_exact(target.model, target.controller, steps), "nodes": target.controller.nodes,
-           "sha256": decode(target.table).sha256}
-    row.update(world_cost(target, None, SIZES["quick" if quick else "full"], seed))
-    return row
+    row = evaluate.judge(target, SIZES["quick" if quick else "full"], seed, names=("table",))["table"]
+    return {**row, "nodes": target.controller.nodes, "sha256": decode(target.table).sha256}
 
 
 def baselines(table: Path, quick: bool, seed: int) -> dict:
     """The baselines judged the same way (belief tracking with this table's alpha vectors)."""
-    target = load_target(str(table))
-    sizes = SIZES["quick" if quick else "full"]
-    steps = int(round(HORIZON_S / 0.1))
-    out = {}
-    for name, (ctrl, policy) in _policies(target).items():
-        if name == "table":
-            continue
-        if ctrl is not None:
-            row = {"p_hazard": hazard_exact(target.model, ctrl, steps), "p_hazard_ci": 0.0}
-        else:
-            p, ci = hazard_belief(target.model, *target.alphas, steps, belief_episodes(target.model, sizes), seed)
-            row = {"p_hazard": p, "p_hazard_ci": ci}
-        row.update(world_cost(target, policy, sizes, seed))
-        out[name] = row
-    return out
+    rows = evaluate.judge(load_target(str(table)), SIZES["quick" if quick else "full"], seed)
+    rows.pop("table")
+    return rows
 
 
 def dominates(a: dict, b: dict) -> bool:
@@ -121,7 +107,7 @@ def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[fl
         say(f"pareto {name}: point {i + 1}/{len(grid)} {weights}: solve and compile")
         table = solve_point(name, weights, out_dir / f"{name}-point{i:02d}", time_budget)
         say(f"pareto {name}: point {i + 1}/{len(grid)}: judging")
-        points.append({"weights": weights, "table": str(table), **judge(table, quick, seed)})
+        points.append({"weights": weights, "table": str(table), **judge_table(table, quick, seed)})
     default = next((i for i, w in enumerate(grid) if all(v == 1.0 for k, v in w.items() if k in ("collision_weight", "braking_weight"))), 0)
     say(f"pareto {name}: baselines (belief tracking with point {default}'s alpha vectors)")
     base = baselines(Path(points[default]["table"]), quick, seed)
