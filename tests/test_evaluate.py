@@ -16,7 +16,7 @@ from verification import evaluate as ev
 from verification import pareto
 from verification.fastcore import TablePolicy, VectorMonitor
 from verification.policies import BeliefTracking, finite_baselines, supervised, supervision_floor
-from verification.world_metrics import PolicyCost, ratio
+from verification.world_metrics import PolicyCost, ratio, wilson_upper
 
 ENV = {**os.environ, "MPLBACKEND": "Agg"}
 
@@ -140,6 +140,17 @@ def test_ratio_interval_of_equal_trains_is_zero_and_grows_with_spread():
     assert r == 0.5 and ci > 0.2
 
 
+def test_wilson_upper_bound_is_honest_when_nothing_hits():
+    """Belief tracking's Monte Carlo hazard: 0 of 2000 episodes must not read as 'exactly 0'
+    (the normal approximation's half-width is 0 there); for many hits it agrees with it."""
+    assert wilson_upper(0, 2000) == pytest.approx(1.96 ** 2 / (2000 + 1.96 ** 2), rel=1e-12)
+    assert 0.0018 < wilson_upper(0, 2000) < 0.0020
+    p, n = 0.3, 100000
+    assert wilson_upper(int(p * n), n) == pytest.approx(p + 1.96 * np.sqrt(p * (1 - p) / n), rel=1e-3)
+    assert wilson_upper(5, 1000) < wilson_upper(6, 1000) and wilson_upper(5, 1000) > wilson_upper(5, 2000)
+    assert wilson_upper(0, 0) == 1.0 and wilson_upper(10, 10) == 1.0
+
+
 def test_policy_cost_counts_braking_without_obstacle_stops_and_changes():
     cost = PolicyCost(2, dt=0.1, encounters=np.array([1.0, 0.0]))
     obstacle = [[True, False], [True, False], [False, False], [False, False]]
@@ -179,12 +190,13 @@ def test_evaluate_json_has_every_figure_for_the_table_and_every_baseline(evaluat
     assert all(os.path.isfile(f) for f in r["files"])
 
 
-@pytest.mark.parametrize("name", ev.ACCEPTED)
-def test_shipped_table_is_no_worse_than_threshold_and_belief_tracking(evaluated, name):
+@pytest.mark.parametrize("name", sorted(ev.ACCEPTED))
+def test_shipped_table_is_no_worse_than_the_baselines_it_is_held_to(evaluated, name):
     """ACAS X's acceptance rule: the table beats the simple rules on both risk and needless braking
-    (Model 2's table is not yet held to it: docs/models.md section 7)."""
+    (both models since issue 12, docs/models.md section 7)."""
     r = evaluated[name]
-    for base in ("threshold", "belief_tracking"):
+    assert set(ev.ACCEPTED[name]) == {"threshold", "belief_tracking"}
+    for base in ev.ACCEPTED[name]:
         b = r["baselines"][base]
         # exact against exact, or within the Monte Carlo interval of belief tracking's estimate
         assert r["table"]["p_hazard"] <= b["p_hazard"] + b["p_hazard_ci"], (base, r["table"]["p_hazard"], b["p_hazard"])
@@ -254,3 +266,22 @@ def test_m1_table_holds_its_demand_through_the_default_scenario(tmp_path):
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     assert d["outcome"] == "stopped" and d["demand_changes"] <= 2, d["demand_changes"]
+
+
+def test_m2_table_brakes_once_in_the_default_scenario(tmp_path):
+    """Hysteresis (issue 12) for the default table: `railguard run` as the README gives it.
+    The default scenario silences a channel for 4 s at standstill; the monitor answers with
+    an emergency and returns (two changes any table gets). Without that fault, the table's
+    own changes: one (service braking to a stop, held), against 17 to 21 without release cost."""
+    proc = railguard("run", "--json", "--no-plot", "--out", str(tmp_path / "default"))
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    assert d["table"] == "m2" and d["outcome"] == "stopped" and d["demand_changes"] <= 3, d
+    text = (ROOT / "can_bus" / "scenarios" / "static-obstacle.toml").read_text(encoding="utf-8")
+    assert "[[faults]]" in text
+    calm = tmp_path / "static-obstacle-no-fault.toml"
+    calm.write_text(text[:text.index("[[faults]]")], encoding="utf-8")
+    proc = railguard("run", "--scenario", str(calm), "--json", "--no-plot", "--out", str(tmp_path / "calm"))
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    assert d["outcome"] == "stopped" and 1 <= d["demand_changes"] <= 2, d["demand_changes"]

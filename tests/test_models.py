@@ -447,9 +447,8 @@ def test_model2_paper_reward_follows_eq10_as_printed():
     assert cats == {1, 2, 3, 4}
 
 
-def test_model2_corrected_reward_answers_risk_with_braking(m2):
-    model, _ = m2
-    assert model.params["reward"] == "corrected"
+def test_model2_corrected_reward_answers_risk_with_braking():
+    model = m2_build(reward="corrected")
     seen = set()
     for i, s in enumerate(model2.state_tuples()):
         cat = risk_category(risk_score(*s))
@@ -605,7 +604,30 @@ def test_model2_levels_are_the_monitors_zones():
 
     alpha1, alpha2, s1, s2, warning = monitor_zones(40.0)
     assert model2.geometry(model2.Model2Params(zones="monitor")) == (alpha2, alpha1 - alpha2, warning, s1, s2)
-    assert model2.Model2Params().zones == "paper"       # until a table there earns its place (docs/models.md 7)
+    assert model2.Model2Params().zones == "monitor"     # since issue 12: its table earns its place there
+
+
+def test_model2_hazard_reward_prices_the_hazard_and_the_braking(m2):
+    """Reward "hazard" (the default since issue 12) charges what the tables are judged by: a
+    step in the critical level (the hazard) whatever is done, and elsewhere the deceleration
+    demanded, dearer with the obstacle beyond the warning zone (unnecessary braking) than for
+    one within it. Weights scale each part; maintaining is free outside the hazard."""
+    model, _ = m2
+    p = model2.Model2Params()
+    assert model.params["reward"] == "hazard"
+    decel = np.array(p.decelerations_mps2)
+    for i, s in enumerate(model2.state_tuples()):
+        if s[DIST] == 3:
+            assert np.all(model.R[i] == -model2.HAZARD_COST * p.collision_weight), model.states[i]
+        else:
+            per = p.far_braking_cost if s[DIST] == 0 else p.near_braking_cost
+            assert np.allclose(model.R[i], -per * decel), model.states[i]
+    assert p.far_braking_cost > p.near_braking_cost > 0
+    heavy = m2_build(collision_weight=2.0, braking_weight=3.0)
+    assert np.allclose(heavy.R[model.R[:, 0] < 0], 2.0 / p.collision_weight * model.R[model.R[:, 0] < 0])
+    assert np.allclose(heavy.R[model.R[:, 0] == 0], 3.0 * model.R[model.R[:, 0] == 0])
+    with pytest.raises(ModelError, match="far_braking_cost"):
+        m2_build(far_braking_cost=-1.0)
 
 
 def test_release_cost_is_charged_by_controllers_not_by_the_model(tmp_path):

@@ -18,6 +18,7 @@ import pytest
 from cantools.autosar.end_to_end import check_profile2_crc
 
 from can_bus import vcan
+from host_load import MAX_STEAL, host_cpu, steal_between
 from can_bus.codec import BRAKE_DEMAND_ID, MONITOR_STATUS_ID, database
 from monitor.core.types import R_ENVELOPE, R_STALE, R_SYSTEM_ERROR, R_TABLE
 
@@ -25,17 +26,31 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "tests" / "data" / "vcan-stop.toml"     # obstacle stop (about 31 s), then channel 2 silent 34-36 s
 
 
+def one_session(out: Path) -> tuple[Path, float]:
+    before = host_cpu()
+    res = vcan.run(["sh", str(ROOT / "tests" / "vcan_session.sh"), str(out), str(SCENARIO)],
+                   timeout=240, cwd=ROOT, env={"PYTHONPATH": str(ROOT)})
+    steal = steal_between(before, host_cpu())
+    assert not res.timed_out, res.console[-2000:]
+    assert res.returncode == 0, (res.stdout, res.stderr, (out / "monitor.err").read_text(), (out / "player.err").read_text())
+    return out, steal
+
+
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
+    """One session; a second one only if the host's hypervisor took so much CPU that the
+    Python player in the sandbox sent in bursts (host_load.py): the host says so, not the
+    monitor's results."""
     if shutil.which("apt-get") is None and not (vcan.cache_dir() / "root/usr/bin/linux.uml").is_file():
         if os.environ.get("CI") == "true":
             pytest.fail("no apt-get to fetch user-mode-linux, and no cached sandbox")
         pytest.skip("needs apt-get (Debian) for the user-mode-linux sandbox")
-    out = tmp_path_factory.mktemp("vcan")
-    res = vcan.run(["sh", str(ROOT / "tests" / "vcan_session.sh"), str(out), str(SCENARIO)],
-                   timeout=240, cwd=ROOT, env={"PYTHONPATH": str(ROOT)})
-    assert not res.timed_out, res.console[-2000:]
-    assert res.returncode == 0, (res.stdout, res.stderr, (out / "monitor.err").read_text(), (out / "player.err").read_text())
+    out, steal = one_session(tmp_path_factory.mktemp("vcan"))
+    if steal > MAX_STEAL:
+        out, steal = one_session(tmp_path_factory.mktemp("vcan"))
+    if steal > MAX_STEAL:
+        pytest.fail(f"host CPU steal {steal:.0%} in two sessions: the sandbox cannot judge the monitor (host too busy)",
+                    pytrace=False)
     return out
 
 

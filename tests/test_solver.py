@@ -138,11 +138,14 @@ def test_exact_evaluation_of_a_large_controller_uses_a_converged_solution(m2):
     ctrl = Controller(rng.integers(0, A, N), rng.integers(0, N, (N, Z)), 0)
     V = evaluate(model, ctrl)
     assert V.shape == (N, S)
-    # (B V)[n, s] = R[s, a_n] + g * sum_s' T[a_n, s, s'] sum_o O[a_n, s', o] V[next[n, o], s']
-    W = np.stack([(model.O[ctrl.action[n]] * V[ctrl.next[n]].T).sum(axis=1) for n in range(N)])  # (N, S')
+    # (B V)[n, s] = R[s, a_n] + g * sum_s' T[a_n, s, s'] sum_o O[a_n, s', o] (V[next[n, o], s'] - release cost
+    # when the next node demands less than n)
+    lowered = model.release_cost * (ctrl.action[ctrl.next] < ctrl.action[:, None])                   # (N, Z)
+    W = np.stack([(model.O[ctrl.action[n]] * (V[ctrl.next[n]].T - lowered[n])).sum(axis=1) for n in range(N)])  # (N, S')
     BV = model.R[:, ctrl.action].T + model.discount * np.einsum("nst,nt->ns", model.T[ctrl.action], W)
     assert np.abs(BV - V).max() <= 1e-6 * max(1.0, np.abs(model.R).max())
-    lo, hi = model.R.min() / (1 - model.discount), model.R.max() / (1 - model.discount)
+    assert model.release_cost > 0                                    # Model 2 has hysteresis since issue 12
+    lo, hi = (model.R.min() - model.release_cost) / (1 - model.discount), model.R.max() / (1 - model.discount)
     assert np.all(V >= lo - 1e-9) and np.all(V <= hi + 1e-9)
 
 

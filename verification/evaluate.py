@@ -36,7 +36,7 @@ from . import seed000, seed001
 from .closed_loop import HORIZON_S, hazard_states, hazard_within
 from .fastcore import TablePolicy
 from .policies import BASELINES, BeliefTracking, finite_baselines, supervised, supervision_floor
-from .world_metrics import Z95
+from .world_metrics import wilson_upper
 
 METRICS = ("p_hazard", "unnecessary_braking", "stops_per_train_hour", "demand_changes_per_encounter")
 
@@ -92,8 +92,9 @@ def hazard_exact(model, ctrl: Controller, steps: int) -> float:
 
 
 def hazard_belief(model, alphas: np.ndarray, actions: np.ndarray, steps: int, episodes: int, seed: int) -> tuple[float, float]:
-    """(P(hazard within `steps` cycles), 95 % half-width) of belief tracking with the
-    supervision in front, sampled on the model."""
+    """(P(hazard within `steps` cycles), distance from it to its 95 % upper bound (Wilson:
+    world_metrics.wilson_upper)) of belief tracking with the supervision in front, sampled
+    on the model. The upper side is the one the acceptance rule reads (no_worse)."""
     rng = np.random.default_rng(seed)
     S, _, Z = model.shape
     cumT, cumO = np.cumsum(model.T, axis=2), np.cumsum(model.O, axis=2)
@@ -112,7 +113,7 @@ def hazard_belief(model, alphas: np.ndarray, actions: np.ndarray, steps: int, ep
         a = np.maximum(proposed, floor[obs])
         hit |= hazard[state]
     p = float(hit.mean())
-    return p, Z95 * math.sqrt(max(p * (1 - p), 1e-12) / episodes)
+    return p, wilson_upper(int(hit.sum()), episodes) - p
 
 
 def belief_episodes(model, sizes: Sizes) -> int:
@@ -198,9 +199,9 @@ def evaluate(spec: str, quick: bool = False, seed: int = SEED,
 
 
 def no_worse(a: dict, b: dict) -> dict:
-    """Is policy a no worse than b? p_hazard: a's figure at most b's plus b's 95 % half-width
-    (b's is a Monte Carlo estimate for belief tracking, where a point comparison with an exact
-    figure would be a coin toss; 0 for exact figures). unnecessary_braking: point estimates,
+    """Is policy a no worse than b? p_hazard: a's figure at most b's 95 % upper bound (b's is
+    a Monte Carlo estimate for belief tracking, where a point comparison with an exact figure
+    would be a coin toss; b's own figure for exact ones). unnecessary_braking: point estimates,
     which common random numbers make comparable."""
     return {"p_hazard": a["p_hazard"] <= b["p_hazard"] + (b.get("p_hazard_ci") or 0.0),
             "unnecessary_braking": a["unnecessary_braking"] <= b["unnecessary_braking"]}
@@ -213,9 +214,13 @@ def dominance(table: dict, baselines: dict) -> dict:
 
 def _fmt(row: dict, key: str) -> str:
     value, ci = row[key], row.get(key + "_ci", 0.0)
-    digits = 4 if key in ("p_hazard", "unnecessary_braking") else 2
+    digits = 6 if key == "p_hazard" else 4 if key == "unnecessary_braking" else 2
     text = f"{value:.{digits}f}"
-    return text + (f" ± {ci:.{digits}f}" if ci and not math.isnan(ci) else "")
+    if not ci or math.isnan(ci):
+        return text
+    if key == "p_hazard":           # Monte Carlo: the 95 % upper bound, the side the rule reads
+        return text + f" (<= {value + ci:.{digits}f})"
+    return text + f" ± {ci:.{digits}f}"
 
 
 def render(result: dict) -> str:
@@ -281,9 +286,10 @@ def plot(result: dict, path: Path) -> Path:
 # ----------------------------------------------------------------------------- the report part
 
 FRONTIERS = Path(__file__).resolve().parents[1] / "docs" / "verification"
-# Models whose shipped table is held to the acceptance rule in `railguard verify`. Model 2's
-# is not yet: no table on the monitor's zones dominates threshold (docs/models.md section 7).
-ACCEPTED = ("m1",)
+# The baselines each model's shipped table is held to in `railguard verify` (ACAS X's rule)
+# and that a Pareto point must dominate to be recommended: both, for both models (Model 2
+# since it prices the hazard, docs/models.md section 7).
+ACCEPTED = {"m1": ("threshold", "belief_tracking"), "m2": ("threshold", "belief_tracking")}
 
 
 def section(out_dir, quick: bool, progress):
@@ -319,7 +325,7 @@ def section(out_dir, quick: bool, progress):
         for base in ("threshold", "belief_tracking"):
             b = r["baselines"][base]
             ok = r["dominates"][base]
-            if name not in ACCEPTED:
+            if base not in ACCEPTED.get(name, ()):
                 md.append(f"\n{name} against {base}: " + ("no worse on both" if all(ok.values()) else
                           "worse on " + ", ".join(k for k, v in ok.items() if not v)) + " (not yet held to the rule)\n")
                 continue

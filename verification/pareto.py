@@ -6,9 +6,10 @@ A reward is a choice; the frontier shows what the choice costs. For each weight 
 `railguard evaluate` judges it: p_hazard exact on the closed loop with the supervision in
 front, unnecessary braking by Monte Carlo in the seed world (the quick size, the same seed
 for every point: common random numbers). The frontier is the set of points no other point
-beats on both. A table may ship only from the frontier and only if it dominates
-`threshold` and `belief_tracking` (ACAS X's acceptance rule); `recommended` is the frontier
-point that does so with the least unnecessary braking.
+beats on both. A table may ship only from the frontier and only if it dominates the
+baselines its model is held to (ACAS X's acceptance rule, evaluate.ACCEPTED: threshold and
+belief tracking); `recommended` is the frontier point that does so with
+the least unnecessary braking.
 """
 from __future__ import annotations
 
@@ -28,12 +29,10 @@ from .closed_loop import HORIZON_S
 
 GRIDS = {
     "m1": [{"braking_weight": b, "release_cost": c} for c in (0.0, 5.0, 20.0) for b in (0.5, 1.0, 2.0, 4.0)],
-    # Model 2 on the monitor's zones (its default stays on the paper's until a table there
-    # earns its place: docs/models.md section 7)
-    "m2": [{"zones": "monitor", "collision_weight": w} for w in (1.0, 2.0, 4.0)]
-          + [{"zones": "monitor", "braking_weight": 0.5}],
+    # Model 2 (reward "hazard"): the price of the hazard against braking; the release cost
+    # stays at its default (2): hysteresis is a requirement, not a trade (docs/models.md section 7)
+    "m2": [{"collision_weight": w} for w in (0.125, 0.25, 0.5, 1.0, 2.0)],
 }
-JUDGED = ("threshold", "belief_tracking")
 WEIGHTS = ("collision_weight", "braking_weight", "release_cost")
 
 
@@ -108,11 +107,12 @@ def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[fl
         table = solve_point(name, weights, out_dir / f"{name}-point{i:02d}", time_budget)
         say(f"pareto {name}: point {i + 1}/{len(grid)}: judging")
         points.append({"weights": weights, "table": str(table), **judge_table(table, quick, seed)})
-    default = next((i for i, w in enumerate(grid) if all(v == 1.0 for k, v in w.items() if k in ("collision_weight", "braking_weight"))), 0)
+    defaults = MODELS[name].params      # belief tracking with the alpha vectors of the model's own weights
+    default = next((i for i, w in enumerate(grid) if all(getattr(defaults, k, None) == v for k, v in w.items())), 0)
     say(f"pareto {name}: baselines (belief tracking with point {default}'s alpha vectors)")
     base = baselines(Path(points[default]["table"]), quick, seed)
     front = frontier(points)
-    ok = [i for i in front if all(dominates(points[i], base[b]) for b in JUDGED if b in base)]
+    ok = [i for i in front if all(dominates(points[i], base[b]) for b in evaluate.ACCEPTED.get(name, ()) if b in base)]
     return {
         "model": name,
         "horizon_s": HORIZON_S,
@@ -139,10 +139,11 @@ def render(result: dict) -> str:
     for name, b in result["baselines"].items():
         lines.append(f"    {name:<48}{b['p_hazard']:>12.6f}{b['unnecessary_braking']:>14.5f}")
     lines.append("")
-    lines.append("F: on the frontier; *: recommended (on the frontier, no worse than threshold and belief_tracking "
-                 "on both, least unnecessary braking)")
+    held = " and ".join(evaluate.ACCEPTED.get(result["model"], ())) or "no baseline"
+    lines.append(f"F: on the frontier; *: recommended (on the frontier, no worse than {held} on both figures, "
+                 "least unnecessary braking)")
     if result["recommended"] is None:
-        lines.append("no frontier point dominates both threshold and belief_tracking")
+        lines.append(f"no frontier point dominates {held}")
     return "\n".join(lines) + "\n"
 
 

@@ -743,10 +743,10 @@ def section(out_dir: Path, quick: bool, progress: Progress) -> Section:
          "The paper counts every step; steps without an obstacle agree trivially (both 'no risk'), so they lift the figure."],
         ["mean reward, eq. 10 as printed", f"{PAPER['reward']:.2f}", f"{m['reward_paper']:.2f} ± {se_r:.2g}", f"{a['reward_paper']:.2f}",
          "Eq. 10 as printed gives 0 for any action at low risk, wants emergency braking at moderate risk and nominal braking at high "
-         "risk (-20 otherwise). Our table was solved with the corrected reward, and our supervision brakes in emergency at high risk, "
+         "risk (-20 otherwise). Our table is solved with the hazard reward (docs/models.md section 4), not eq. 10, and our supervision brakes in emergency at high risk, "
          "which eq. 10 charges -20 a step; the table alone scores closer to the paper. The value depends directly on how often the "
          "world is in each risk category, which the paper's unspecified scenario generator sets."],
-        ["mean reward, corrected (what the table was solved with)", "-", f"{m['reward_corrected']:.2f} ± {se_c:.2g}",
+        ["mean reward, corrected (our variant of eq. 10)", "-", f"{m['reward_corrected']:.2f} ± {se_c:.2g}",
          f"{a['reward_corrected']:.2f}",
          "Not in the paper. Rows low..critical: maintain 0/-5/-20/-100, nominal -2/0/-5/-50, emergency -5/-2/0/0 (docs/models.md). "
          "The monitor is charged -5 a step for the emergency braking its supervision holds after a misperceived 'critical'."],

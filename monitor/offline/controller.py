@@ -460,7 +460,7 @@ def reduced_model(model: POMDP, layer: ConditionLayer) -> POMDP:
     np.add.at(O.transpose(2, 0, 1), layer.base, model.O.transpose(2, 0, 1))
     first = np.unique(layer.base, return_index=True)[1]
     return POMDP(model.name, model.states, model.actions, tuple(model.observations[o] for o in first), model.T, O,
-                 model.R, model.discount, model.b0, model.params)
+                 model.R, model.discount, model.b0, model.params, release_cost=model.release_cost)
 
 
 def layered(base: Controller, layer: ConditionLayer, action: np.ndarray) -> Controller:
@@ -514,7 +514,9 @@ def compile_monotone(model: POMDP, sol: Solution, layer: ConditionLayer, max_nod
                      progress: Optional[Callable[[str], None]] = None, deadline: Optional[float] = None) -> Compiled:
     """A controller whose demand never falls when conditions are reported adverse.
 
-    1. compile the base controller on the model with the conditions unobserved;
+    1. compile the base controller on the model with the conditions unobserved, from `sol`,
+       the solution of that reduced model (reduced_model: its alpha vectors are the ones
+       whose witnesses the base follows);
     2. layer it: node (m, q) moves like m on the base part and keeps the condition memory q;
     3. improve the actions, keeping the layering: each (m, q) takes its best action at the
        belief it is visited with, raised to the largest action of any (m, q') with q' below

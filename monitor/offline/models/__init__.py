@@ -45,7 +45,7 @@ MODELS = {
         "seed 001: 144-state anti-collision POMDP (distance, speed, type, track, brake)",
         model2.Model2Params(),
         model2.build,
-        Plan(SolverSettings(max_beliefs=500, max_iterations=100000, expand_every=5, time_budget_s=60.0, target_gap=0.01),
+        Plan(SolverSettings(max_beliefs=500, max_iterations=100000, expand_every=5, time_budget_s=60.0, target_gap=0.001),
              max_nodes=255,
              conditions=model2.CONDITIONS),
     ),

@@ -34,7 +34,10 @@ PAPER_REWARD = {1: {0: 0.0}, 2: {0: -5.0, 1: -5.0}, 3: {0: -20.0, 2: -20.0}, 4: 
 # Ours: penalties rise with risk and with the shortfall of the response; braking costs
 # when the risk is low. Rows: risk category 1..4; columns: maintain, nominal, emergency.
 CORRECTED_REWARD = ((0.0, -2.0, -5.0), (-5.0, 0.0, -2.0), (-20.0, -5.0, 0.0), (-100.0, -50.0, 0.0))
-REWARD_VARIANTS = ("corrected", "paper")
+# "hazard": the costs the tables are judged by (docs/models.md section 7): the hazard itself
+# (a step in the critical level) and the deceleration demanded anywhere else.
+HAZARD_COST = 20000.0
+REWARD_VARIANTS = ("corrected", "paper", "hazard")
 # The start belief's track and brakes: "any" = the four combinations equally likely (the
 # default since issue 11), "normal" = normal track and normal brakes (before issue 11).
 START_CONDITIONS = ("any", "normal")
@@ -53,11 +56,10 @@ def state_name(levels: tuple[int, ...]) -> str:
 class Model2Params:
     """Seed 001 fixes the structure; every number below is ours unless marked."""
 
-    reward: str = "corrected"                    # "paper" = eq. 10 as printed
-    zones: str = "paper"                         # "monitor": the levels are the monitor's zones from the
-                                                 # braking curves; "paper": the three *_length_m below (the
-                                                 # default until a table on the monitor's zones beats the
-                                                 # simple rules: docs/models.md section 7)
+    reward: str = "hazard"                       # "paper" = eq. 10 as printed, "corrected" = ours of it,
+                                                 # "hazard" = the costs the tables are judged by (section 7)
+    zones: str = "monitor"                       # "monitor": the levels are the monitor's zones from the
+                                                 # braking curves; "paper": the three *_length_m below
     discount: float = 0.95                       # seed 000 Table 1 (seed 001 gives none)
     time_step_s: float = 0.1                     # seed 000 Table 1; the monitor's cycle
     speed_mps: float = 40.0                      # seed 000 Table 1
@@ -82,9 +84,14 @@ class Model2Params:
     brake_recovery: float = 0.001                # P(degraded -> normal) per step
     misperception: tuple = (0.02, 0.05, 0.05, 0.02, 0.01)  # eq. 9, epsilon per component
     start_conditions: str = "any"                # see START_CONDITIONS and docs/models.md section 6
-    collision_weight: float = 1.0                # x the penalties for braking less than the risk asks (Pareto sweep)
+    collision_weight: float = 0.5                # "hazard": x the hazard's cost (0.5: the recommended point of the Pareto
+                                                 # sweep, docs/verification/pareto-m2); "paper"/"corrected": x the
+                                                 # penalties for braking less than the risk asks ("paper": unweighted)
     braking_weight: float = 1.0                  # x the penalties for braking more than the risk asks
-    release_cost: float = 0.0                    # paid by the controller each time it lowers its demand
+    release_cost: float = 2.0                    # paid by the controller each time it lowers its demand
+    far_braking_cost: float = 30.0               # reward "hazard": per m/s^2 demanded with the obstacle beyond the
+                                                 # warning zone (the unnecessary braking the tables are judged by)
+    near_braking_cost: float = 0.01              # reward "hazard": per m/s^2 demanded for an obstacle within it (lost time)
 
     def check(self) -> None:
         if self.zones not in ZONE_SOURCES:
@@ -119,7 +126,7 @@ class Model2Params:
                 raise ModelError(f"{name} must be probabilities summing to 1, got {v}")
         if any(d <= 0 for d in self.obstacle_duration_s):
             raise ModelError(f"obstacle_duration_s must be > 0, got {self.obstacle_duration_s}")
-        for name in ("collision_weight", "braking_weight", "release_cost"):
+        for name in ("collision_weight", "braking_weight", "release_cost", "far_braking_cost", "near_braking_cost"):
             if not getattr(self, name) >= 0:
                 raise ModelError(f"{name} must be >= 0, got {getattr(self, name)}")
         for i, e in enumerate(self.misperception):
@@ -240,16 +247,23 @@ RESPONSE = (0, 1, 2, 2)
 
 
 def reward(p: Model2Params) -> np.ndarray:
-    """R[s, a] of eq. 10 (variant p.reward); a penalty for braking less than the state's risk
-    asks is x collision_weight, one for braking more x braking_weight."""
+    """R[s, a]: "hazard" (docs/models.md section 4), or eq. 10 as printed ("paper", no weights)
+    or corrected, where a penalty for braking less than the state's risk asks is
+    x collision_weight, one for braking more x braking_weight."""
     R = np.zeros((len(state_tuples()), 3))
+    if p.reward == "hazard":
+        for i, s in enumerate(state_tuples()):
+            per_mps2 = p.far_braking_cost if s[0] == 0 else p.near_braking_cost
+            R[i] = (-HAZARD_COST * p.collision_weight if s[0] == 3
+                    else -p.braking_weight * per_mps2 * np.asarray(p.decelerations_mps2, dtype=float))
+        return R
     for i, s in enumerate(state_tuples()):
         cat = risk_category(risk_score(*s))
         for a in range(3):
-            if p.reward == "paper":
-                r = PAPER_REWARD[cat].get(a, 0.0)
-            else:
-                r = CORRECTED_REWARD[cat - 1][a]
+            if p.reward == "paper":          # as printed: no weights
+                R[i, a] = PAPER_REWARD[cat].get(a, 0.0)
+                continue
+            r = CORRECTED_REWARD[cat - 1][a]
             want = RESPONSE[cat - 1]
             R[i, a] = r * (p.collision_weight if a < want else p.braking_weight if a > want else 1.0)
     return R
