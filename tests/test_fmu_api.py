@@ -506,7 +506,7 @@ def test_build_refuses_a_configuration_the_core_refuses(tmp_path):
 
 # ---- 6: NaN and out-of-range inputs ------------------------------------------------------------
 
-HEALTHY = ChannelInput(status=1, distance=500.0, closing_speed=20.0, type=0, valid=True)
+HEALTHY = ChannelInput(status=1, distance=3000.0, closing_speed=20.0, type=0, valid=True)
 GOOD = StepInput((HEALTHY,) * CHANNELS, speed=20.0)
 BAD_CH3 = {
     "distance NaN": HEALTHY._replace(distance=math.nan),
