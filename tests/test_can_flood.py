@@ -38,8 +38,8 @@ import pytest
 from cantools.autosar.end_to_end import check_profile2_crc
 
 from can_bus import vcan
-from host_load import MAX_STEAL, host_cpu, steal_between
 from can_bus.codec import BRAKE_DEMAND_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Sender, encode, report_signals
+from host_load import MAX_STEAL, host_cpu, steal_between
 from monitor.core.types import ABSENT, REASON_NAMES, Report
 
 ROOT = Path(__file__).resolve().parents[1]
