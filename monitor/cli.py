@@ -29,8 +29,11 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from .offline.pomdp import ModelError
     from .offline.pomdp_file import PomdpFormatError
 
+    from verification.scale import ClusterError
+    from verification.world_train import WorldTrainError
+
     errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, DeclarationError,
-              OSError]
+              WorldTrainError, ClusterError, OSError]
     try:
         import can
 
@@ -88,7 +91,12 @@ def cmd_pareto(args: argparse.Namespace) -> int:
     grid = pareto.read_grid(args.grid) if args.grid else None
     say = (lambda text: print(text, file=sys.stderr, flush=True))
     out = Path(args.out) / f"pareto-{args.model}"
-    result = pareto.sweep(args.model, out, quick=True, time_budget=args.time_budget, grid=grid, progress=say)
+    from verification.scale import Cluster, check
+
+    cluster = Cluster(args.workers or 1, args.scheduler)
+    check(cluster)
+    result = pareto.sweep(args.model, out, quick=True, time_budget=args.time_budget, grid=grid, progress=say,
+                          cluster=cluster)
     files = [out / "frontier.json"]
     files[0].write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
     files.append(pareto.plot(result, out / "frontier.png"))
@@ -490,7 +498,19 @@ def _run_evidence(args: argparse.Namespace, parts: tuple[str, ...]) -> int:
             print(f"[{time.perf_counter() - started:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     cfg = _with_braking(Config(), args) if getattr(args, "braking", None) else None
-    sections, report = run.run(args.out, args.quick, progress, parts, config=cfg)
+    world = None
+    if getattr(args, "world_train", None):
+        from verification.world_train import load
+
+        world = load(args.world_train)
+    cluster = None
+    if getattr(args, "workers", None) is not None or getattr(args, "scheduler", None):
+        from verification.scale import Cluster, check
+
+        cluster = Cluster(args.workers or 0, args.scheduler)
+        check(cluster)
+    sections, report = run.run(args.out, args.quick, progress, parts, config=cfg, world=world,
+                               margin_m=getattr(args, "unsafe_margin", 0.0), cluster=cluster)
     checks = [c for s in sections for c in s.checks]
     passed = all(c.passed for c in checks)
     if args.json:
@@ -502,6 +522,11 @@ def _run_evidence(args: argparse.Namespace, parts: tuple[str, ...]) -> int:
     else:
         for c in checks:
             print(c.line())
+        for s in sections:
+            if "runs_digest" in s.headline:
+                h = s.headline
+                print(f"{s.title}: {h['runs']:,} runs, {h['unsafe']} unsafe, {h['collisions']} collisions; "
+                      f"runs digest {h['runs_digest']}")
         print(f"{'passed' if passed else 'FAILED'}: {sum(c.passed for c in checks)} of {len(checks)} checks; report {report}")
     return 0 if passed else 1
 
@@ -524,6 +549,24 @@ def _positive_float(text: str) -> float:
     if not value > 0:
         raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
     return value
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 1 <= n <= 1024:
+        raise argparse.ArgumentTypeError(f"{text!r} must be 1..1024")
+    return n
+
+
+def _cluster_arguments(p: argparse.ArgumentParser, default: str = "one per core", what: str = "") -> None:
+    p.add_argument("--workers", type=_workers, metavar="N",
+                   help=f"{what}worker processes of a local dask cluster (default: {default}; 1 runs in this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on an existing dask.distributed cluster, e.g. tcp://10.0.0.5:8786 (its workers need "
+                        "railguard installed); results are identical to a local run")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -568,6 +611,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", metavar="FILE.toml",
                    help="with --pareto: the weights to sweep, e.g. braking_weight = [1.0, 2.0] and "
                         "release_cost = [0.0, 1.0] (every combination); default: the built-in grid of the model")
+    _cluster_arguments(p, "1: the points one after the other, each with a core to itself", "with --pareto: ")
     p.add_argument("--json", action="store_true", help="print one JSON object with the figures and paths")
     p.set_defaults(func=cmd_solve)
 
@@ -736,13 +780,27 @@ def build_parser() -> argparse.ArgumentParser:
                     "missed detection, CRC corruption, counter freeze and jump, wrong length, babbling, contradiction, "
                     "stale timestamps, deadline overrun, corrupted or mismatched table) crossed with obstacle scenarios, "
                     "through the core, a sample through the real runner and codec on the virtual bus and on vcan0; then "
-                    "random and mutated frames into the receive path. Counts unsafe outcomes, crashes, collisions and "
-                    "false braking; writes a report; exit status 1 if a check fails.",
+                    "random and mutated frames into the receive path. The simulated world is the judge: a run is "
+                    "unsafe when the world's train (the train FMU's physics, with parameters of its own: --world-train) "
+                    "reaches an obstacle it could have stopped for. Counts unsafe runs, crashes, collisions and false "
+                    "braking; prints a digest of every run's seed and outcome; writes a report; exit status 1 if a "
+                    "check fails.",
     )
     ca.add_argument("--quick", action="store_true", help="a few hundred runs and 20,000 frames (what CI runs)")
     ca.add_argument("--braking", metavar="FILE.toml", help=BRAKING_HELP)
+    ca.add_argument("--world-train", metavar="FILE.toml",
+                    help="the simulated world's train, independent of the monitor's declaration (a [world_train] "
+                         "table: emergency_decel, service_decel, brake_delay, brake_buildup, gradient, traction_cutoff, "
+                         "max_traction, speed_error, davis_a/b/c, mass, sensor_latency_s, output_latency_s; "
+                         "verification/world_train.py); default: every run its own train drawn inside the declaration, "
+                         "one in four on its worst corners")
+    ca.add_argument("--unsafe-margin", type=float, default=0.0, metavar="M",
+                    help="a run is unsafe when the world's train reaches an obstacle it could stop for, or comes "
+                         "closer to it than M metres (default: %(default)s)")
+    _cluster_arguments(ca)
     ca.add_argument("--out", default="railguard-out/campaign", metavar="DIR", help="report folder (default: %(default)s)")
-    ca.add_argument("--json", action="store_true", help='print {"passed": bool, "checks": [...], ...}')
+    ca.add_argument("--json", action="store_true",
+                    help='print {"passed": bool, "unsafe": N, "runs": N, "runs_digest": "sha256", "checks": [...], ...}')
     ca.set_defaults(func=cmd_campaign)
     return parser
 

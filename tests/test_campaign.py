@@ -6,6 +6,7 @@ ghost and false-braking checks, a refused table is a detection and not a crash, 
 virtual-bus runs count the codec's own rejects."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 
@@ -19,6 +20,7 @@ from monitor.core.types import (
     EMERGENCY, R_DISPUTE, R_ENVELOPE, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR, SERVICE,
 )
 from verification import campaign as cp
+from verification import world_train as wt
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +48,9 @@ def test_quick_campaign_is_safe_and_detects_every_fault(quick):
     # issue 11: false braking at most 5 %, none unsafe; a 0.3 s ghost beyond SBI never stops the train
     assert core["false_braking_rate"] <= 0.05 < core["brake_without_obstacle_rate"]
     ghost = summary["ghost"]
-    assert ghost["runs"] == 24 and not ghost["stopped"] and ghost["min_speed_mps"] == 40.0 and not ghost["undiagnosed"]
+    # (the world's train may run faster than 40 m/s downhill, so a ghost placed just beyond SBI at 40 m/s
+    # can fall inside it: a moment of service braking, never a stop)
+    assert ghost["runs"] == 24 and not ghost["stopped"] and ghost["min_speed_mps"] >= 39.5 and not ghost["undiagnosed"]
     # collisions only where the object appears inside the emergency braking distance
     assert all(c["collisions"] == 0 for key, c in core["cells"].items() if not key.endswith("|sudden-120m"))
     bus = summary["bus"]
@@ -85,13 +89,18 @@ def test_runs_are_deterministic():
     assert a["rejects"].get("bad_crc", 0) > 0
 
 
-def test_unsafe_checker_allows_one_cycle_and_no_more():
-    inside = [False, True, True, False]
-    assert cp.unsafe_at(inside, [0, 0, EMERGENCY, EMERGENCY]) == []        # emergency at the next cycle
-    assert cp.unsafe_at(inside, [0, 0, 0, EMERGENCY]) == [1]                # two cycles late for cycle 1
-    assert cp.unsafe_at(inside, [0, 0, 0, 0]) == [1, 2]
-    assert cp.unsafe_at([False, True], [0, SERVICE]) == [1]                  # the last cycle must show it itself
-    assert cp.unsafe_at([True, True], [EMERGENCY, 0]) == [1]
+def test_the_world_judges_collisions_it_could_have_avoided():
+    """Unsafe is the world's verdict: a collision with an obstacle the world's train could
+    have stopped for (or a gap below the margin). An object appearing inside the train's own
+    stopping distance is unavoidable, whatever the monitor does."""
+    corner = wt.corners(Config())[0]
+    sudden = cp.simulate(cp.RunSpec((), "sudden-120m", 0, "m1"), world=corner)
+    assert sudden["collision"] and sudden["unavoidable"] and sudden["unsafe"] == 0
+    assert cp.simulate(cp.RunSpec((), "crossing-500m-30", 0, "m1"), world=corner)["unsafe"] == 0
+    stop = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), world=corner)
+    assert not stop["collision"] and stop["unsafe"] == 0 and stop["stop_margin_m"] > 20.0
+    near = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), world=corner, margin_m=stop["stop_margin_m"] + 1.0)
+    assert near["unsafe"] == 1 and not near["collision"] and near["unsafe_first"]["gap_m"] == stop["stop_margin_m"]
 
 
 def _never_braking_table(model: str = "m1") -> bytes:
@@ -104,36 +113,23 @@ def _no_supervision(monkeypatch):
 
 
 def test_a_planted_unsafe_monitor_is_reported_unsafe(monkeypatch):
-    """No supervision, a table that never brakes, service braking on errors: the campaign's
-    checker must call it unsafe (and the train hits the obstacle)."""
+    """No supervision, a table that never brakes, service braking on errors: the world's train
+    hits the obstacle it could have stopped for, and the campaign calls it unsafe."""
     _no_supervision(monkeypatch)
     cfg = Config(safe_reaction=SERVICE)
     table = _never_braking_table()
-    bad = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), config=cfg, table_bytes=table, keep_trace=True)
+    corner = wt.corners(cfg)[0]
+    bad = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), config=cfg, table_bytes=table, keep_trace=True,
+                      world=corner)
     assert bad["crash"] is None
-    assert bad["unsafe"] > 0 and bad["collision"]
-    first = bad["unsafe_first"]
-    assert (first["true_inside"] or first["voted_inside"]) and first["demand"] != EMERGENCY
-    assert any(row[7] and row[4] != EMERGENCY for row in bad["trace"])    # a true obstacle inside, no emergency
+    assert bad["unsafe"] == 1 and bad["collision"] and not bad["unavoidable"]
+    assert bad["unsafe_first"]["gap_m"] <= 0.0 and bad["unsafe_first"]["impact_speed_mps"] > 15.0
+    assert all(row[4] != EMERGENCY for row in bad["trace"])
     # a fault that raises a system error only gets service braking: still unsafe
     faulty = cp.simulate(cp.RunSpec(("noise_burst",), "static-150m-10", 0, "m1"), config=cfg, table_bytes=table)
-    assert faulty["unsafe"] > 0
+    assert faulty["unsafe"] == 1
     # the same world with the real monitor is safe
-    assert cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"))["unsafe"] == 0
-
-
-def test_a_voted_obstacle_inside_ebi_needs_emergency(monkeypatch):
-    """The voted-obstacle clause alone: a phantom 50 m ahead on one channel of a clear track.
-    Without the supervision, nothing brakes in the cycles before the disagreement becomes a
-    perceptor error."""
-    _no_supervision(monkeypatch)
-    monkeypatch.setattr(cp, "instantiate", lambda spec, rng: [cp.Fault("contradiction", 0, 2.0, 4.0, (500,))])
-    res = cp.simulate(cp.RunSpec(("contradiction",), "no-obstacle", 0, "m1"), config=Config(safe_reaction=SERVICE),
-                      table_bytes=_never_braking_table(), keep_trace=True)
-    assert res["unsafe"] > 0
-    first = res["unsafe_first"]
-    assert first["voted_inside"] and not first["true_inside"] and first["true_distance_m"] is None
-    assert not res["collision"]
+    assert cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), world=corner)["unsafe"] == 0
 
 
 def test_a_monitor_blind_to_stale_reports_fails_the_silence_check(monkeypatch):
@@ -203,30 +199,37 @@ def _nominal_envelope(cfg, speed, track, brake, closing, age, service=False):
 
 
 def test_the_old_nominal_envelope_collides_in_the_campaigns_world(monkeypatch):
-    """The world's train brakes only as the declaration guarantees (2.4 m/s^2 after 1 s): the
-    nominal alpha2 of the old core is too short there, and the checker says so."""
+    """The world's train on the declaration's worst corner (2.2 m/s^2 above 30 m/s, 1 s dead
+    time, downhill): the nominal alpha2 of the old core is too short there, and the world says so."""
+    corner = wt.corners(Config())[0]
     monkeypatch.setattr(cycle, "curves", _nominal_envelope)
-    res = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table(), keep_trace=True)
-    assert res["collision"] and res["unsafe"] > 0 and res["unsafe_first"]["true_inside"]
+    res = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table(), world=corner)
+    assert res["collision"] and res["unsafe"] == 1 and not res["unavoidable"]
     monkeypatch.undo()
-    good = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table())
+    good = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m1"), table_bytes=_never_braking_table(), world=corner)
     assert not good["collision"] and good["unsafe"] == 0 and good["stop_margin_m"] >= Config().standstill_margin_dm / 10
 
 
-def test_the_world_brakes_as_guaranteed_no_better():
-    cfg = Config()
-    brake = cp.WorldBrake(cfg)
-    got = [brake.decel_mps2(EMERGENCY, 35.0) for _ in range(12)]
-    assert got[:10] == [0.0] * 10 and got[10:] == [2.2, 2.2]             # 1 s dead time, band 2 above 30 m/s
-    assert brake.emergency_mps2(29.99) == 2.4
-    brake = cp.WorldBrake(cfg)
-    got = [brake.decel_mps2(SERVICE, 20.0) for _ in range(22)]
-    assert got[:20] == [0.0] * 20 and got[20:] == [0.8, 0.8]               # service: 2 s, 0.8 m/s^2
-    weak = Config(emergency_decel_mms2=1500, emergency_band2_cms=0, service_decel_mms2=700, emergency_buildup_ms=1500)
-    assert cp.WorldBrake(weak).emergency_mps2(40.0) == 1.5
-    res = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m2"), config=weak)
-    base = cp.simulate(cp.RunSpec((), "static-300m-20", 0, "m2"))
-    assert res["unsafe"] == 0 and not res["collision"] and res["stop_margin_m"] != base["stop_margin_m"]
+def test_a_world_train_worse_than_declared_collides_and_the_declared_one_does_not():
+    """The witness does not share the monitor's assumptions: with a world train braking at
+    1.0 m/s^2 after 1.5 s (the monitor still believes the declaration), the level-crossing
+    scenario ends in collisions the train could have avoided; the declaration's corners stop."""
+    weak = wt.WorldTrain(emergency_decel=((0.0, 1.0),), service_decel=0.5, brake_delay=1.5, brake_buildup=0.0)
+    for model in ("m1", "m2"):
+        spec = cp.RunSpec((), "crossing-500m-30", 0, model)
+        res = cp.simulate(spec, world=weak)
+        assert res["unsafe"] == 1 and res["collision"] and not res["unavoidable"], res["unsafe_first"]
+        for corner in wt.corners(Config()):
+            ok = cp.simulate(spec, world=corner)
+            assert ok["unsafe"] == 0 and not ok["collision"] and ok["closest_m"] > 50.0
+
+
+def test_runs_digest_depends_on_outcomes_not_on_order():
+    runs = [cp.simulate(cp.RunSpec((), s, 0, "m2")) for s in ("static-150m-10", "no-obstacle", "train-ahead")]
+    digest = cp.runs_digest(runs)
+    assert cp.runs_digest(list(reversed(runs))) == digest and len(digest) == 64
+    changed = [dict(runs[0], collision=True)] + runs[1:]
+    assert cp.runs_digest(changed) != digest
 
 
 def test_false_braking_counts_only_what_no_diagnosed_fault_explains():
@@ -249,11 +252,14 @@ def test_a_monitor_that_brakes_for_a_ghost_fails_the_ghost_and_false_braking_che
     before issue 11 answered a disagreement): the ghost stops the train."""
     cfg = Config(emergency_release=0)
     plan = cp.ghost_plan(True, cfg)[:4]
-    good = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f), ghost_dm=f[0].variant[0]) for s, f in plan])
+    flat = dataclasses.replace(wt.corners(cfg)[0], gradient=0.0)      # holds 40 m/s: the ghosts stay beyond SBI
+    good = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f, world=flat), ghost_dm=f[0].variant[0])
+                             for s, f in plan])
     assert good["runs"] == 4 and not good["stopped"] and good["false_braking"] == 0 and good["max_demand"] == 0
     monkeypatch.setattr(cycle, "supervision_demand",
                         lambda present, distance, ebi, sbi, warning, held: (EMERGENCY, True) if present else (0, False))
-    bad = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f), ghost_dm=f[0].variant[0]) for s, f in plan])
+    bad = cp.ghost_summary([dict(cp.simulate(s, config=cfg, faults=f, world=flat), ghost_dm=f[0].variant[0])
+                            for s, f in plan])
     assert len(bad["stopped"]) == 4 and bad["false_braking"] == 4
     summary = {"mode": "quick", "core": cp.aggregate([]), "ghost": bad}
     assert not next(c for c in cp.checks(summary) if "ghost" in c.name).passed

@@ -235,7 +235,9 @@ def test_pareto_frontier_keeps_only_unbeaten_points():
 def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     grid = tmp_path / "grid.toml"
     grid.write_text("braking_weight = [1.0, 4.0]\n", encoding="utf-8")
-    proc = railguard("solve", "--pareto", "--model", "m1", "--grid", str(grid), "--out", str(tmp_path), "--json")
+    # the two points as two dask tasks on a 2-worker local cluster
+    proc = railguard("solve", "--pareto", "--model", "m1", "--grid", str(grid), "--out", str(tmp_path), "--json",
+                     "--workers", "2")
     assert proc.returncode == 0, proc.stderr
     r = json.loads(proc.stdout)
     assert [p["weights"] for p in r["points"]] == [{"braking_weight": 1.0}, {"braking_weight": 4.0}]

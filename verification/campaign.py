@@ -47,7 +47,6 @@ import tempfile
 import time
 import traceback
 from collections import Counter, defaultdict
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -57,15 +56,18 @@ import numpy as np
 from monitor.core import cycle
 from monitor.core import table as table_mod
 from monitor.core.braking import curves
-from monitor.core.config import Config, ConfigurationError, emergency_bands
+from monitor.core.config import Config, ConfigurationError
 from monitor.core.freshness import channel_status
 from monitor.core.types import (
-    ABSENT, EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE,
-    R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_TRAIN_INPUT, REASON_NAMES, SAFE_STOP, SERVICE, STATIC,
+    ABSENT, EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NORMAL, PRESENT, R_DEADLINE,
+    R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_TRAIN_INPUT, REASON_NAMES, SAFE_STOP, STATIC,
     Inputs, Report, Train,
 )
 
+from . import world_train
+from .scale import Cluster, map_ordered
 from .report import Check, Progress, Section, md_table
+from .world_train import WorldTrain
 
 # ----------------------------------------------------------------------------- the catalogue
 
@@ -180,6 +182,8 @@ SCENARIOS = (
                   (Obstacle(400.0, 0.0, 3.0, "dynamic"),), (0.5, 14.0)),
     WorldScenario("sudden-120m", "an object appears 120 m ahead (inside EBI) at 5 s, 30 m/s", 30.0, 20.0,
                   (Obstacle(270.0, 5.0, 0.0, "static"),), (0.5, 6.0)),
+    WorldScenario("crossing-500m-30", "a vehicle stops on the track 500 m ahead at 5 s (a level crossing), 30 m/s",
+                  30.0, 40.0, (Obstacle(650.0, 5.0, 0.0, "dynamic"),), (0.5, 8.0)),
 )
 GHOST_SCENARIO = WorldScenario("ghost-clear-40", "clear track, 40 m/s, a 0.3 s ghost on one channel beyond SBI", 40.0, 40.0)
 GHOST_S = 0.3
@@ -341,57 +345,6 @@ def _shipped_setup(model: str, cfg: Config) -> cycle.Setup:
     return cycle.create(cfg, shipped_table(model))
 
 
-def unsafe_at(inside: list, demands: list) -> list[int]:
-    """The unsafe cycles: an obstacle (voted or true) inside EBI at cycle i while the demand
-    is emergency neither at i nor at i + 1 (the last cycle must show it itself)."""
-    n = len(demands)
-    return [i for i in range(n) if inside[i] and demands[i] != EMERGENCY and (i + 1 >= n or demands[i + 1] != EMERGENCY)]
-
-
-def ebi_dm(cfg: Config, speed_cms: int, closing_cms: int, age_ms: int = 0) -> int:
-    """The emergency intervention curve (normal track and brakes) at a speed, for an obstacle
-    closing at `closing_cms`, from a report `age_ms` old: monitor.core.braking.curves."""
-    return curves(cfg, min(max(speed_cms, 0), MAX_SPEED_CMS), 0, 0, closing_cms, age_ms).ebi_dm
-
-
-def picture(handed: list, tick: int, cfg: Config, speed_cms: int) -> tuple[int, int]:
-    """(closing speed, age) the monitor's curves take from the reports it was handed: the
-    largest of its fresh PRESENT reports (the train's speed and 0 if there is none)."""
-    timeout = cfg.timeout_cycles * cfg.period_ms
-    fresh = [r for r in handed if channel_status(r, tick, timeout) == PRESENT]
-    if not fresh:
-        return speed_cms, 0
-    return max(r.closing_cms for r in fresh), max(tick - r.tick for r in fresh)
-
-
-class WorldBrake:
-    """The world's train brakes as its declaration guarantees at worst, not better: each brake
-    acts at its guaranteed deceleration (the emergency brake by speed band; flat track,
-    normal conditions) from its equivalent build-up time after it was demanded (a pure dead
-    time of `emergency_buildup_ms` / `service_buildup_ms`), for as long as it was demanded."""
-
-    def __init__(self, cfg: Config):
-        self.bands = emergency_bands(cfg)
-        self.service_mps2 = cfg.service_decel_mms2 / 1000.0
-        self.delay_e = -(-cfg.emergency_buildup_ms // cfg.period_ms)
-        self.delay_s = -(-cfg.service_buildup_ms // cfg.period_ms)
-        self.history: list = []
-
-    def emergency_mps2(self, speed_mps: float) -> float:
-        v = speed_mps * 100.0
-        return next(a for lo, a in reversed(self.bands) if v >= lo) / 1000.0
-
-    def decel_mps2(self, demand: int, speed_mps: float) -> float:
-        """The deceleration over the next step, given this cycle's demand."""
-        self.history.append(demand)
-
-        def ago(n: int) -> int:
-            return self.history[-1 - n] if len(self.history) > n else 0
-        if ago(self.delay_e) == EMERGENCY:
-            return self.emergency_mps2(speed_mps)
-        return self.service_mps2 if ago(self.delay_s) >= SERVICE else 0.0
-
-
 def reaction_to_fault(reasons: int, held_by_fault: bool) -> bool:
     """A demand that answers a fault the monitor diagnosed (stale, safe stop, deadline, train
     input, init), or an emergency the latch still holds after such an answer."""
@@ -424,11 +377,13 @@ def _core_step():
 
 
 def simulate(spec: RunSpec, *, config: Optional[Config] = None, table_bytes: Optional[bytes] = None,
-             keep_trace: bool = False, faults: Optional[list] = None) -> dict:
-    """One core-level run (faults drawn from the spec's seed unless given). Never raises: an
-    exception anywhere is the run's `crash`."""
+             keep_trace: bool = False, faults: Optional[list] = None, world: Optional[WorldTrain] = None,
+             margin_m: float = 0.0) -> dict:
+    """One core-level run (faults drawn from the spec's seed unless given) in a world whose
+    train is `world` (None: drawn from the run's key inside the declaration of `config`,
+    world_train.for_run). Never raises: an exception anywhere is the run's `crash`."""
     try:
-        return _simulate(spec, config or Config(), table_bytes, keep_trace, faults)
+        return _simulate(spec, config or Config(), table_bytes, keep_trace, faults, world, margin_m)
     except Exception as exc:  # noqa: BLE001 - a crash is a result of the campaign, not its end
         return {"key": spec.key, "kinds": spec.kinds, "scenario": spec.scenario, "seed": spec.seed,
                 "model": spec.model, "crash": f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}",
@@ -437,14 +392,13 @@ def simulate(spec: RunSpec, *, config: Optional[Config] = None, table_bytes: Opt
 
 
 def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_trace: bool,
-              faults: Optional[list]) -> dict:
+              faults: Optional[list], world: Optional[WorldTrain], margin_m: float) -> dict:
     from can_bus.codec import OBSTACLE_IDS, Receiver, Sender, report_signals
 
     rng = random.Random(f"railguard-campaign/{spec.key}")
     scen = SCENARIO_BY_NAME[spec.scenario]
     faults = instantiate(spec, rng) if faults is None else list(faults)
     period = cfg.period_ms
-    dt = period / 1000.0
 
     # ---- monitor start-up (a table fault must be refused)
     data, expect, run_cfg = (table_bytes if table_bytes is not None else shipped_table(spec.model)), None, cfg
@@ -482,29 +436,51 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     tol2 = 2 * cfg.distance_tolerance_dm
     undetected_corrupt = 0
 
-    # ---- world state: a train braking as its declaration guarantees, no better
+    # ---- the world: its own train (not the monitor's declaration), its timing, the obstacles
+    world = world or world_train.for_run(cfg, spec.key)
+    twin = world_train.TrainTwin(world, scen.speed_mps)
+    substeps = max(1, round(period / (1000 * world_train.STEP_S)))
+    late_steps = math.ceil(world.output_latency_s / world_train.STEP_S - 1e-9)     # the old demand still acts
+    phase_ms = int.from_bytes(hashlib.sha256(f"railguard-campaign/{spec.key}/phase".encode()).digest()[:2], "little") % period
+    seen_ago_s = phase_ms / 1000.0 + world.sensor_latency_s     # a report handed now was sensed this long ago
+    hist_x, hist_v = [0.0], [scen.speed_mps]                     # the train at every internal step since the entry
     t = 0.0
-    position = 0.0
     speed = scen.speed_mps
     started = False
     collision = False
+    collided_with = None
     impact_speed = None
     stop_margin = None
     min_speed = speed
-    brake = WorldBrake(cfg)
+    applied_before = 0
     obstacles = [(o.position_m, o.appear_s, o.speed_mps, OBSTACLE_TYPES.index(o.type)) for o in scen.obstacles]
+    in_sight: set = set()           # obstacles that have come into sensor range
+    unavoidable: set = set()        # ... when not even an emergency demand at the next cycle stopped the world's train
+    closest: dict = {}              # obstacle -> smallest gap, metres
 
-    def nearest():
+    def train_at(at: float) -> tuple[float, float]:
+        """(position, speed) of the world's train at world time `at` (interpolated)."""
+        if at <= 0.0:
+            return 0.0, hist_v[0]
+        f = min(at / world_train.STEP_S, len(hist_x) - 1.0)
+        i = min(int(f), len(hist_x) - 2) if len(hist_x) > 1 else 0
+        w = f - i
+        if len(hist_x) == 1:
+            return hist_x[0], hist_v[0]
+        return hist_x[i] + w * (hist_x[i + 1] - hist_x[i]), hist_v[i] + w * (hist_v[i + 1] - hist_v[i])
+
+    def nearest(at: float, position: float):
+        """(gap, obstacle speed, type, index) of the nearest obstacle there at `at`, or None."""
         best = None
-        for pos, appear, v, typ in obstacles:
-            if t < appear:
+        for j, (pos, appear, v, typ) in enumerate(obstacles):
+            if at < appear:
                 continue
-            d = pos + v * (t - appear) - position
+            d = pos + v * (at - appear) - position
             if best is None or d < best[0]:
-                best = (d, v, typ)
+                best = (d, v, typ, j)
         return best
 
-    demands, inside, reasons_l, flags_l, modes_l, near_l, moving_l = [], [], [], [], [], [], []
+    demands, reasons_l, flags_l, modes_l, near_l, moving_l = [], [], [], [], [], []
     streak: dict = {}              # contradiction fault index -> consecutive cycles of an ABSENT/PRESENT split
     persisted: dict = {}           # contradiction fault index -> cycle its streak reached persistence_cycles
     braked = False
@@ -520,19 +496,30 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         if last is not None and k > last:
             break
         tick = k * period
-        near = nearest()
-        v_in = min(MAX_SPEED_CMS, round(speed * 100)) if started else 0
+        t = twin.time if started else 0.0
+        speed = twin.speed if started else 0.0
+        near = nearest(t, twin.position)                         # the truth now
+        v_in = min(MAX_SPEED_CMS, round(twin.measured_speed() * 100)) if started else 0
+        if near is not None and 0 <= near[0] <= RANGE_M and near[3] not in in_sight:
+            in_sight.add(near[3])
+            if started and not twin.stops_within(near[0], near[1], period / 1000.0 + world.output_latency_s,
+                                                 applied_before):
+                unavoidable.add(near[3])
 
-        # ---- sensors, faults, frames, latch
-        if near is None or near[0] > RANGE_M or near[0] < 0:
+        # ---- sensors (what they saw seen_ago_s before this tick, received phase_ms before it), faults, frames, latch
+        stamp = max(0, tick - phase_ms)
+        seen_at = max(0.0, t - seen_ago_s)
+        seen_x, seen_v = train_at(seen_at) if started else (0.0, 0.0)
+        seen = nearest(seen_at, seen_x)
+        if seen is None or seen[0] > RANGE_M or seen[0] < 0:
             absent = True
         else:
             absent = False
-            d, ov, typ = near
-            closing = max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round(((speed if started else 0.0) - ov) * 100)))
+            d, ov, typ, _ = seen
+            closing = max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round((seen_v - ov) * 100)))
         gk = noise[k]
         if absent:
-            absent_report = Report(ABSENT, 0, 0, 0, tick)
+            absent_report = Report(ABSENT, 0, 0, 0, stamp)
         for ch in range(6):
             g = gk[ch]
             fs = by_channel.get(ch)
@@ -541,7 +528,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                     latched[ch] = absent_report
                 else:
                     x = d + NOISE_SIGMA_M * g
-                    latched[ch] = Report(PRESENT, min(MAX_DISTANCE_DM, round(x * 10)) if x > 0 else 0, closing, typ, tick)
+                    latched[ch] = Report(PRESENT, min(MAX_DISTANCE_DM, round(x * 10)) if x > 0 else 0, closing, typ, stamp)
                 continue
             active = [f for f in fs if f.start_s <= t < f.end_s]
             kinds = {f.kind for f in active}
@@ -575,7 +562,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             else:
                 ffs = frame_faults.get(ch)
                 routed = ffs and any(f.start_s - ROUTE_BEFORE_S <= t < f.end_s + ROUTE_AFTER_S for f in ffs)
-                report = Report(rep[0], rep[1], rep[2], rep[3], tick)
+                report = Report(rep[0], rep[1], rep[2], rep[3], stamp)
                 if not routed:
                     receiver.reports[ch] = report
                 else:
@@ -601,7 +588,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                             elif f.kind == "wrong_length":
                                 frame = frame[: f.variant[0]]
                         before = receiver.rejected_total
-                        name = receiver.accept(fid, bytes(frame), tick)
+                        name = receiver.accept(fid, bytes(frame), stamp)
                         if "bad_crc" in kinds and name is not None:
                             undetected_corrupt += 1
                         if receiver.rejected_total > before:
@@ -642,46 +629,47 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                 core_exceptions += 1
                 state, out = cycle.step(setup, state, inputs, tick)
             demand, mode = out.demand, out.mode
-            voted_in = out.distance_dm != NO_DISTANCE and out.distance_dm <= ebi_dm(cfg, v_in, *picture(handed, tick, cfg, v_in))
             reasons_l.append(out.reasons)
             flags_l.append(out.module_flags)
         else:
-            demand, mode, voted_in = EMERGENCY, None, False
+            demand, mode = EMERGENCY, None
             reasons_l.append(0)
             flags_l.append(0)
         overruns = overruns + 1 if overrun_now else 0
-        true_speed_cms = math.ceil(speed * 100) if started else 0
-        true_in = near is not None and near[0] * 10 <= ebi_dm(cfg, true_speed_cms, math.ceil(true_speed_cms - near[1] * 100))
         demands.append(demand)
-        inside.append(voted_in or true_in)
         modes_l.append(mode)
         near_l.append(near is not None and 0 <= near[0] <= RANGE_M)
         moving_l.append(started)
         braked = braked or (started and demand > 0)
         if trace is not None:
-            trace.append((tick, t, speed if started else 0.0, None if near is None else near[0], demand, mode,
-                          voted_in, true_in, reasons_l[-1]))
+            trace.append((tick, t, speed, None if near is None else near[0], demand, mode, reasons_l[-1]))
 
-        # ---- the world moves with the demand (a late cycle's demand arrives one period late)
+        # ---- the world moves with the demand (a late cycle's demand arrives one period late; every
+        # demand reaches the brakes output_latency_s after its cycle)
         applied = prev_demand if overrun_now else demand
         prev_demand = demand
         if not started and mode == NORMAL and demand == 0:
             started = True
-        if started and t < scen.duration_s - 1e-9:
-            decel = brake.decel_mps2(applied, speed)
-            new_speed = max(0.0, speed - decel * dt)
-            min_speed = min(min_speed, new_speed)
-            position += (speed + new_speed) / 2 * dt
-            speed = new_speed
-            t += dt
-            hit = nearest()
-            if hit is not None and hit[0] <= 0:
-                collision = True
-                impact_speed = new_speed
-                speed = 0.0
+        if started and twin.time < scen.duration_s - 1e-9:
+            for j in range(substeps):
+                twin.step(applied_before if j < late_steps else applied)
+                hist_x.append(twin.position)
+                hist_v.append(twin.speed)
+                hit = nearest(twin.time, twin.position)
+                if hit is None:
+                    continue
+                closest[hit[3]] = min(closest.get(hit[3], math.inf), hit[0])
+                if hit[0] <= 0:
+                    collision, collided_with, impact_speed = True, hit[3], twin.speed
+                    break
+                if twin.speed == 0.0 and stop_margin is None:
+                    stop_margin = hit[0]
+            applied_before = applied
+            min_speed = min(min_speed, twin.speed)
+            speed = twin.speed
+            t = twin.time
+            if collision:
                 break
-            if hit is not None and speed == 0.0 and stop_margin is None:
-                stop_margin = hit[0]
         if started and speed == 0.0:
             still += 1
         else:
@@ -690,7 +678,8 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             last = k + 1                 # one more cycle, so that the last one evaluated has its successor
 
     n = len(demands)
-    unsafe_cycles = unsafe_at(inside, demands)
+    too_close = sorted(j for j, gap in closest.items() if j not in unavoidable and (gap < margin_m or gap <= 0.0))
+    unsafe = bool(too_close)
     without, false_braking = false_braking_cycles(demands, reasons_l, near_l, moving_l)
     if setup is None:
         without = True                  # held at the entry by the shell's emergency demand (a diagnosed fault)
@@ -717,12 +706,18 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                           else diag_cycle - first})
     res = {
         "key": spec.key, "kinds": spec.kinds, "scenario": spec.scenario, "seed": spec.seed, "model": spec.model,
-        "cycles": n, "unsafe": len(unsafe_cycles),
-        "unsafe_first": None if not unsafe_cycles else _describe(unsafe_cycles[0], trace, demands, inside),
+        "cycles": n, "unsafe": int(unsafe),
+        "unsafe_first": None if not unsafe else {"obstacle": too_close[0], "gap_m": round(closest[too_close[0]], 2),
+                                                  "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
+                                                  "margin_m": margin_m, "world": world.describe()},
+        "unavoidable": bool(collision and collided_with in unavoidable),
         "crash": None, "core_exceptions": core_exceptions, "undecodable": receiver.rejected.get("undecodable", 0),
         "collision": collision, "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
         "false_braking": false_braking, "brake_without_obstacle": without, "braked": braked, "entered": started,
         "min_speed_mps": round(min_speed, 3), "max_demand": max(demands, default=0),
+        "world": {"corner": world in world_train.corners(cfg), "emergency_mps2": min(a for _, a in world.emergency_decel),
+                  "buildup_s": round(world.equivalent_buildup_s(), 3), "gradient": world.gradient},
+        "closest_m": None if not closest else round(min(closest.values()), 2),
         "stop_margin_m": None if stop_margin is None else round(stop_margin, 2),
         "rejects": dict(receiver.rejected), "corrupt_frames_accepted": undetected_corrupt,
         "config_error": config_error, "reasons_seen": [REASON_NAMES[b] for b in range(len(REASON_NAMES)) if seen_bits >> b & 1],
@@ -735,15 +730,6 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     if trace is not None:
         res["trace"] = trace
     return res
-
-
-def _describe(i: int, trace, demands, inside) -> dict:
-    d = {"cycle": i, "demand": demands[i], "next_demand": demands[i + 1] if i + 1 < len(demands) else None}
-    if trace is not None:
-        tick, t, v, dist, _, mode, voted_in, true_in, _ = trace[i]
-        d.update(tick=tick, t_s=round(t, 2), speed_mps=round(v, 2), true_distance_m=None if dist is None else round(dist, 2),
-                 mode=mode, voted_inside=voted_in, true_inside=true_in)
-    return d
 
 
 def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receiver,
@@ -773,35 +759,29 @@ def _first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receive
 
 
 def _work(job: tuple) -> list:
-    specs, cfg = job
+    specs, cfg, world, margin_m = job
     out = []
     for spec in specs:
-        r = simulate(spec, config=cfg)
+        r = simulate(spec, config=cfg, world=world, margin_m=margin_m)
         r.pop("trace", None)
         out.append(r)
     return out
 
 
-def run_core(specs: list[RunSpec], progress: Progress, workers: int = 0, config: Optional[Config] = None) -> list[dict]:
-    """Every spec through `simulate` with `config` (default Config()), in parallel processes (order kept)."""
+CHUNK = 40           # core-level runs per dask task
+
+
+def run_core(specs: list[RunSpec], progress: Progress, cluster: Cluster = Cluster(), config: Optional[Config] = None,
+             world: Optional[WorldTrain] = None, margin_m: float = 0.0) -> list[dict]:
+    """Every spec through `simulate` with `config` (default Config()) and `world` (None: each
+    run's own train inside the declaration), on `cluster` (order kept). Each run draws its
+    faults, noise and world train from its own key, so the results do not depend on the
+    number of workers."""
     cfg = config or Config()
-    workers = workers or max(1, min(2, os.cpu_count() or 1))
-    chunk = 40
-    chunks = [(specs[i:i + chunk], cfg) for i in range(0, len(specs), chunk)]
-    results: list = []
-    if workers == 1 or len(chunks) == 1:
-        for c in chunks:
-            results.extend(_work(c))
-        return results
-    done = 0
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for res in pool.map(_work, chunks):
-            results.extend(res)
-            done += len(res)
-            if done % 2000 < chunk:
-                progress(f"campaign: {done:,} of {len(specs):,} core runs ({time.perf_counter() - t0:.0f} s)")
-    return results
+    chunks = [(specs[i:i + CHUNK], cfg, world, margin_m) for i in range(0, len(specs), CHUNK)]
+    done = map_ordered(_work, chunks, cluster, progress=progress, label="campaign: core runs",
+                       weight=lambda job: len(job[0]))
+    return [r for chunk in done for r in chunk]
 
 
 def ghost_plan(quick: bool, cfg: Config) -> list[tuple]:
@@ -811,7 +791,7 @@ def ghost_plan(quick: bool, cfg: Config) -> list[tuple]:
     and m2 tables alternating (full mode: both tables)."""
     scen = GHOST_SCENARIO
     v = round(scen.speed_mps * 100)
-    c = curves(cfg, v, 0, 0, v, 0)
+    c = curves(cfg, v, 0, 0, v, cfg.period_ms)          # a report up to one period old (the world's phase)
     far = int(RANGE_M * 10) - 100
     distances = sorted({min(x, far) for x in (c.sbi_dm + 1, (c.sbi_dm + c.warning_dm) // 2, c.warning_dm + 1, far)})
     out = []
@@ -824,12 +804,13 @@ def ghost_plan(quick: bool, cfg: Config) -> list[tuple]:
     return out
 
 
-def run_ghosts(quick: bool, cfg: Optional[Config] = None) -> list[dict]:
+def run_ghosts(quick: bool, cfg: Optional[Config] = None, world: Optional[WorldTrain] = None,
+               margin_m: float = 0.0) -> list[dict]:
     """The ghost runs through `simulate` (each result also carries the ghost's distance)."""
     cfg = cfg or Config()
     out = []
     for spec, faults in ghost_plan(quick, cfg):
-        r = simulate(spec, config=cfg, faults=faults)
+        r = simulate(spec, config=cfg, faults=faults, world=world, margin_m=margin_m)
         r.pop("trace", None)
         out.append(dict(r, ghost_dm=faults[0].variant[0]))
     return out
@@ -866,12 +847,13 @@ class BusSpec:
         return tuple(f.kind for f in self.faults)
 
 
-def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None):
+def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None, world: Optional[WorldTrain] = None):
     """The world scenario as a can_bus Scenario for the Player (same obstacles, noise, faults);
-    its train brakes at the declaration's guaranteed decelerations (the emergency brake at its
-    weakest band), its force ramping up in twice the emergency build-up time (equivalent
-    build-up: dead time + half the ramp)."""
+    its train brakes at the world train's decelerations (default: the declaration's worst
+    corner; the emergency brake at its weakest band), its force ramping up in twice the
+    equivalent build-up time (dead time + half the ramp)."""
     cfg = cfg or Config()
+    world = world or world_train.corners(cfg)[0]
     from can_bus.scenario import FaultSpec, ObstacleSpec, Scenario, SensorSpec, TrainSpec, check
 
     w = SCENARIO_BY_NAME[spec.scenario]
@@ -882,8 +864,8 @@ def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None):
             faults.append(FaultSpec(f.kind, f.channel, float(f.start_s), float(f.end_s), rate))
     scen = Scenario(
         name=spec.name, description=w.description, duration_s=spec.duration_s or w.duration_s,
-        train=TrainSpec(w.speed_mps, cfg.service_decel_mms2 / 1000.0, min(a for _, a in emergency_bands(cfg)) / 1000.0,
-                        2 * cfg.emergency_buildup_ms / 1000.0),
+        train=TrainSpec(w.speed_mps, world.service_decel, min(a for _, a in world.emergency_decel),
+                        2 * world.equivalent_buildup_s()),
         obstacles=tuple(ObstacleSpec(o.position_m, o.appear_s, o.speed_mps, o.type) for o in w.obstacles),
         sensors=SensorSpec(RANGE_M, NOISE_SIGMA_M, 0.0, spec.seed), faults=tuple(faults))
     check(scen)
@@ -945,7 +927,8 @@ def _counting_core():
     return counter, restore
 
 
-def bus_run(spec: BusSpec, config: Optional[Config] = None) -> dict:
+def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[WorldTrain] = None,
+            margin_m: float = 0.0) -> dict:
     """One run on python-can's virtual bus (simulated clock): `can_bus.session.run_virtual`
     for the player's faults; the same loop with a clock that makes cycles finish late for the
     deadline overrun; a refused table leaves the Player alone on the bus."""
@@ -962,7 +945,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None) -> dict:
     counter, restore = _counting_core()
     try:
         cfg = config or Config()
-        scen = bus_scenario(spec, cfg)
+        scen = bus_scenario(spec, cfg, world)
         data, expect, run_cfg = shipped_table(spec.model), None, cfg
         for f in spec.faults:
             if f.kind in TABLE_KINDS:
@@ -1012,7 +995,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None) -> dict:
                     for b in buses:
                         b.shutdown()
         out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None, cfg,
-                                spec.scenario))
+                                spec.scenario, margin_m))
         out.update(player.outcome(), collision=player.collision, entered=player.started)
         out["rejects"] = dict(runner.receiver.rejected)
         out["deadline_misses"] = runner.deadline_misses
@@ -1031,14 +1014,14 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None) -> dict:
     return out
 
 
-def evaluate_bus(records, trace, trace_ticks, cfg: Config, scenario: str) -> dict:
-    """Unsafe cycles, false braking and the demand history of a run on a bus.
+def evaluate_bus(records, trace, trace_ticks, cfg: Config, scenario: str, margin_m: float = 0.0) -> dict:
+    """The world's verdict on a run on a bus (unsafe: the player's train reached the obstacle
+    or came closer than `margin_m`, outside UNAVOIDABLE), and false braking.
 
     `records` are the runner's CycleRecords; `trace` the player's (t_s, speed_mps,
     distance_m) rows. On the virtual bus row i is the world the reports of cycle i came from;
     on a real bus (`trace_ticks` given) the row of cycle i is the newest one stepped at or
-    before its tick. The obstacle's closing speed for the curves comes from the scenario
-    (its one obstacle's speed; none: a static one)."""
+    before its tick."""
     import bisect
 
     rows = []
@@ -1051,29 +1034,23 @@ def evaluate_bus(records, trace, trace_ticks, cfg: Config, scenario: str) -> dic
         rows.append(trace[j] if j is not None else None)
     cut = next((i for i, row in enumerate(rows) if row is not None and row[2] is not None and row[2] <= 0), None)
     if cut is not None:                      # a collision: the world ends there, as in the core-level runs
-        records, rows = records[:cut], rows[:cut]
-    obstacle_cms = round(max((o.speed_mps for o in SCENARIO_BY_NAME[scenario].obstacles), default=0.0) * 100)
-    inside, near, moving = [], [], []
+        records, rows = records[:cut + 1], rows[:cut + 1]
+    gaps = [row[2] for row in trace if row[2] is not None]
+    closest = min(gaps, default=None)
+    near, moving = [], []
     entered = False
     for rec, row in zip(records, rows):
-        v_in = MAX_SPEED_CMS if rec.speed_cms is None else rec.speed_cms
-        voted = rec.distance_dm != NO_DISTANCE and rec.distance_dm <= ebi_dm(cfg, v_in, v_in - obstacle_cms)
-        true = False
-        if row is not None and row[2] is not None:
-            v_true = math.ceil(row[1] * 100)
-            true = row[2] * 10 <= ebi_dm(cfg, v_true, v_true - obstacle_cms)
-        inside.append(voted or true)
         entered = entered or (row is not None and row[1] > 0)
         moving.append(entered)
         near.append(row is not None and row[2] is not None and row[2] <= RANGE_M)
     demands = [r.demand for r in records]
     reasons = [r.reasons for r in records]
     n = len(demands)
-    unsafe = unsafe_at(inside, demands)
+    unsafe = scenario != UNAVOIDABLE and closest is not None and (closest <= 0.0 or closest < margin_m)
     without, false = false_braking_cycles(demands, reasons, near, moving)
     held = not entered and not any(r & FAULT_REACTION for r in reasons)     # never let go, no diagnosed fault
-    return {"cycles": n, "unsafe": len(unsafe), "unsafe_first": None if not unsafe else
-            {"cycle": unsafe[0], "tick": records[unsafe[0]].tick, "demand": demands[unsafe[0]], "row": rows[unsafe[0]]},
+    return {"cycles": n, "unsafe": int(unsafe), "closest_m": None if closest is None else round(closest, 2),
+            "unsafe_first": None if not unsafe else {"gap_m": round(closest, 2), "margin_m": margin_m},
             "brake_without_obstacle": without or not entered, "false_braking": false or held}
 
 
@@ -1108,8 +1085,8 @@ def bus_detection(faults, records, rejected) -> dict:
 
 
 def _bus_work(job: tuple) -> list:
-    specs, cfg = job
-    return [bus_run(s, cfg) for s in specs]
+    specs, cfg, world, margin_m = job
+    return [bus_run(s, cfg, world, margin_m) for s in specs]
 
 
 # ----------------------------------------------------------------------------- vcan0 in the sandbox
@@ -1205,8 +1182,9 @@ def vcan_guest(spec_path: str, out_dir: str) -> int:
     return 0
 
 
-def vcan_sample(specs: list[BusSpec], progress: Progress, config: Optional[Config] = None) -> dict:
-    """Boot the sandbox once and run every session in it; evaluate them on the host."""
+def vcan_sample(specs: list[BusSpec], progress: Progress, config: Optional[Config] = None, margin_m: float = 0.0) -> dict:
+    """Boot the sandbox once and run every session in it (the world's train: the
+    declaration's worst corner); evaluate them on the host."""
     cfg = config or Config()
     from can_bus import vcan
     from can_bus.runner import CycleRecord
@@ -1238,7 +1216,8 @@ def vcan_sample(specs: list[BusSpec], progress: Progress, config: Optional[Confi
                    "crash": raw.get("error"), "unsafe": 0, "collision": False, "false_braking": False, "detected": {}}
             if "records" in raw:
                 records = [CycleRecord(*r) for r in raw["records"]]
-                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], cfg, spec.scenario))
+                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], cfg, spec.scenario,
+                                        margin_m))
                 run.update(raw["outcome"], collision=raw["collision"], entered=raw["entered"], rejects=raw["rejects"],
                            deadline_misses=raw["deadline_misses"], frames_received=raw["frames_received"],
                            faults_injected=raw["faults_injected"])
@@ -1268,13 +1247,14 @@ def aggregate(results: list[dict]) -> dict:
     """Counts over core-level runs: totals, per fault kind (single and in pairs), per
     scenario, per (fault kind, scenario), detection per kind."""
     def blank():
-        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "crashes": 0, "collisions": 0, "false_braking": 0,
+        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "unavoidable": 0, "crashes": 0, "collisions": 0, "false_braking": 0,
                 "brake_without_obstacle": 0}
 
     def add(cell, r):
         cell["runs"] += 1
-        cell["unsafe"] += r["unsafe"]
+        cell["unsafe"] += bool(r["unsafe"])
         cell["unsafe_runs"] += bool(r["unsafe"])
+        cell["unavoidable"] += bool(r.get("unavoidable"))
         cell["crashes"] += r["crash"] is not None
         cell["collisions"] += bool(r["collision"])
         cell["false_braking"] += bool(r["false_braking"])
@@ -1328,7 +1308,7 @@ def aggregate(results: list[dict]) -> dict:
     crash_examples = [{"key": r["key"], "crash": r["crash"]} for r in results if r["crash"]][:10]
     runs = max(1, total["runs"])
     return {
-        "runs": total["runs"], "unsafe": total["unsafe_runs"], "unsafe_cycles": total["unsafe"],
+        "runs": total["runs"], "unsafe": total["unsafe_runs"], "unavoidable": total["unavoidable"],
         "crashes": total["crashes"], "collisions": total["collisions"], "false_braking": total["false_braking"],
         "false_braking_rate": total["false_braking"] / runs, "brake_without_obstacle": total["brake_without_obstacle"],
         "brake_without_obstacle_rate": total["brake_without_obstacle"] / runs,
@@ -1361,43 +1341,43 @@ def _bus_summary(runs: list[dict]) -> dict:
             "crash_examples": [{"name": r["name"], "crash": r["crash"]} for r in runs if r.get("crash")][:5]}
 
 
-def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = True, workers: int = 0,
-        config: Optional[Config] = None) -> dict:
+def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = True, cluster: Cluster = Cluster(),
+        config: Optional[Config] = None, world: Optional[WorldTrain] = None, margin_m: float = 0.0) -> dict:
     """The whole campaign with the monitor's `config` (default Config(), the shipped braking
-    declaration; the world's train brakes as it guarantees); returns its summary (see the
-    module docstring)."""
+    declaration) in a world whose train is `world` (None: each run's own, drawn inside the
+    declaration, corners included); unsafe: the world's train reaches an obstacle it could
+    have stopped for, or comes closer than `margin_m`. Returns the summary (module docstring)."""
     t0 = time.perf_counter()
     cfg = config or Config()
     specs = plan(quick)
     progress(f"campaign: {len(specs):,} core-level runs ({len(combos()) - 1} fault combinations x "
-             f"{len(SCENARIOS)} scenarios{'' if quick else f' x {SEEDS} seeds'})")
-    results = run_core(specs, progress, workers, cfg)
+             f"{len(SCENARIOS)} scenarios{'' if quick else f' x {SEEDS} seeds'})"
+             + (f"; world train: {world.describe()}" if world else "; world trains drawn inside the declaration"))
+    progress(f"campaign: running on {cluster.describe()}")
+    results = run_core(specs, progress, cluster, cfg, world, margin_m)
     progress("campaign: ghost runs (a 0.3 s ghost on one channel beyond SBI, clear track, 40 m/s)")
-    ghosts = run_ghosts(quick, cfg)
+    ghosts = run_ghosts(quick, cfg, world, margin_m)
     core = aggregate(results + ghosts)
     core["seconds"] = time.perf_counter() - t0
     progress(f"campaign: core runs done in {core['seconds']:.0f} s: {core['unsafe']} unsafe, {core['crashes']} crashes")
-    summary = {"mode": "quick" if quick else "full", "core": core, "config": cfg._asdict(), "ghost": ghost_summary(ghosts)}
+    summary = {"mode": "quick" if quick else "full", "core": core, "config": cfg._asdict(), "ghost": ghost_summary(ghosts),
+               "world_train": world_train.as_dict(world), "margin_m": margin_m,
+               "runs_digest": runs_digest(results + ghosts)}
 
     bus_runs: list = []
     if bus:
         t1 = time.perf_counter()
         bspecs = bus_plan(quick)
         progress(f"campaign: {len(bspecs)} runs through the runner, codec and player on the virtual bus")
-        w = workers or max(1, min(2, os.cpu_count() or 1))
-        chunks = [(bspecs[i::w], cfg) for i in range(w)]
-        if w == 1:
-            bus_runs = _bus_work((bspecs, cfg))
-        else:
-            with ProcessPoolExecutor(max_workers=w) as pool:
-                for res in pool.map(_bus_work, chunks):
-                    bus_runs.extend(res)
+        chunks = [((s,), cfg, world, margin_m) for s in bspecs]
+        bus_runs = [r for res in map_ordered(_bus_work, chunks, cluster, progress=progress, label="campaign: bus runs")
+                    for r in res]
         summary["bus"] = dict(_bus_summary(bus_runs), seconds=time.perf_counter() - t1,
                               runs_detail=[{k: v for k, v in r.items() if k != "unsafe_first"} for r in bus_runs])
     vruns: list = []
     if vcan_runs:
         try:
-            v = vcan_sample(vcan_plan(quick), progress, cfg)
+            v = vcan_sample(vcan_plan(quick), progress, cfg, margin_m)
             vruns = v["runs"]
             summary["vcan"] = dict(_bus_summary(vruns), seconds=v["seconds"], timed_out=v["timed_out"], runs_detail=vruns_detail(vruns))
         except Exception as exc:  # noqa: BLE001 - SandboxError or an unexpected failure: reported, never a crash of the campaign
@@ -1414,6 +1394,20 @@ def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = 
     summary["readme_table"] = faults_table(core)
     summary["seconds"] = time.perf_counter() - t0
     return summary
+
+
+OUTCOME_KEYS = ("unsafe", "unavoidable", "collision", "closest_m", "stop_margin_m", "false_braking", "max_demand",
+                "cycles", "crash")
+
+
+def runs_digest(results: list[dict]) -> str:
+    """SHA-256 over every core-level run's key (scenario, faults, seed, table) and outcome, in
+    key order: the same for any number of workers and any order the runs came back in."""
+    h = hashlib.sha256()
+    for r in sorted(results, key=lambda r: (r["key"], r.get("ghost_dm", 0))):
+        h.update(json.dumps([r["key"], r.get("ghost_dm", 0)] + [r.get(k) for k in OUTCOME_KEYS],
+                            sort_keys=True, default=str).encode() + b"\n")
+    return h.hexdigest()
 
 
 def vruns_detail(runs: list[dict]) -> list[dict]:
@@ -1506,21 +1500,23 @@ def checks(summary: dict) -> list[Check]:
     core = summary["core"]
     quick = summary["mode"] == "quick"
     out = [
-        Check("campaign: no unsafe outcome (core-level runs)", core["unsafe"] == 0,
-              f"{core['unsafe']} unsafe runs ({core['unsafe_cycles']} cycles) in {core['runs']:,} runs",
-              {"examples": core["unsafe_examples"]}),
+        Check("campaign: the world's train never reaches an obstacle it could stop for (core-level runs)",
+              core["unsafe"] == 0,
+              f"{core['unsafe']} unsafe runs in {core['runs']:,} runs ({core['collisions']} collisions, "
+              f"{core['unavoidable']} unavoidable)", {"examples": core["unsafe_examples"]}),
         Check("campaign: no crash or exception (core-level runs)", core["crashes"] == 0,
               f"{core['crashes']} crashes in {core['runs']:,} runs", {"examples": core["crash_examples"]}),
     ]
     if not quick:
         out.append(Check("campaign: at least 10,000 core-level runs (full mode)", core["runs"] >= 10_000,
                          f"{core['runs']:,} >= 10,000 in {core['seconds']:.0f} s"))
-    avoidable = {name: c["collisions"] for name, c in core["by_scenario"].items() if name != UNAVOIDABLE}
-    out.append(Check(f"campaign: no collision where it was avoidable (every scenario but {UNAVOIDABLE})",
-                     sum(avoidable.values()) == 0,
-                     f"{sum(avoidable.values())} collisions in {sum(core['by_scenario'][n]['runs'] for n in avoidable):,} runs; "
-                     f"{core['by_scenario'].get(UNAVOIDABLE, {}).get('collisions', 0)} in {UNAVOIDABLE} (object inside EBI)",
-                     {"by_scenario": avoidable}))
+    sudden = {s.name for s in SCENARIOS if any(o.appear_s > 0 for o in s.obstacles)}
+    elsewhere = {name: c["unavoidable"] for name, c in core["by_scenario"].items() if name not in sudden}
+    out.append(Check(f"campaign: the world finds collisions unavoidable only where an object appears suddenly, and in {UNAVOIDABLE}",
+                     sum(elsewhere.values()) == 0 and core["by_scenario"].get(UNAVOIDABLE, {}).get("unavoidable", 0) > 0,
+                     f"{sum(elsewhere.values())} unavoidable where the obstacle is there from the start; "
+                     f"{core['by_scenario'].get(UNAVOIDABLE, {}).get('unavoidable', 0)} in {UNAVOIDABLE}",
+                     {"by_scenario": elsewhere}))
     none = core["single"].get("none", {"runs": 0, "brake_without_obstacle": 0})
     out.append(Check("campaign: fault-free runs never brake without an obstacle",
                      none["runs"] > 0 and none["brake_without_obstacle"] == 0,
@@ -1603,37 +1599,44 @@ def _ghost_and_before(summary: dict) -> str:
 def markdown(summary: dict, figure: Optional[str]) -> str:
     core = summary["core"]
     quick = summary["mode"] == "quick"
-    cfg = summary.get("config") or Config()._asdict()
     lines = [
         f"Every single fault and every pair of faults from the catalogue ({len(KINDS)} kinds; "
         f"{len(combos()) - 1} fault combinations: {len(KINDS)} singles and {len(combos()) - 1 - len(KINDS)} pairs, "
         f"two channels with the same channel fault among them; and the fault-free case) crossed with {len(SCENARIOS)} obstacle "
         f"scenarios{'' if quick else f' and {SEEDS} seeds'} (channels, windows and variants drawn from each run's seed; "
-        "tables m1 and m2 alternating), plus the ghost runs, through `monitor.core.cycle` in a simulated world: a train "
-        "that brakes as the monitor's braking declaration guarantees at worst, not better (the guaranteed emergency "
-        f"deceleration of its speed band, {cfg['emergency_decel_mms2'] / 1000:g} m/s^2 from 0"
-        + (f" and {cfg['emergency_band2_mms2'] / 1000:g} m/s^2 from {cfg['emergency_band2_cms'] / 100:g} m/s"
-           if cfg["emergency_band2_cms"] else "")
-        + f", the guaranteed service deceleration {cfg['service_decel_mms2'] / 1000:g} m/s^2, each acting its equivalent "
-        f"build-up time after the demand: {cfg['emergency_buildup_ms'] / 1000:g} s and {cfg['service_buildup_ms'] / 1000:g} s "
-        f"of pure dead time; flat track), six channels with {NOISE_SIGMA_M} m Gaussian noise and {RANGE_M:.0f} m range. "
+        "tables m1 and m2 alternating), plus the ghost runs, through `monitor.core.cycle` in a simulated world that "
+        "does not share the monitor's assumptions. Its train is the train FMU's physics (`verification/world_train.py`, "
+        "a Python twin held equal to the FMU in FMPy: dead time, linear build-up, speed bands, gradient, traction "
+        "held after a demand), with parameters of its own: "
+        + (f"**the world train given with `--world-train`**: {world_train.from_mapping(summary['world_train'], 'world').describe()}. "
+           if summary.get("world_train") else
+           "one run in four on a corner of the braking declaration (the guaranteed decelerations exactly, the whole "
+           "equivalent build-up as dead time, or as half of it plus a ramp twice as long, the steepest downhill, "
+           "full traction for the whole cut-off, the speed reported low by the whole error), the others drawn "
+           "inside it (each value between the declared limit and a better one), each from the run's own key. ")
+        + "Reports reach the monitor as the runner sees them: received up to one period before the cycle that uses "
+        "them (a phase drawn per run; the monitor counts that age) and sensed up to 10 ms before their reception "
+        "(which it does not see); a demand reaches the brakes up to 10 ms after its cycle. Six channels with "
+        f"{NOISE_SIGMA_M} m Gaussian noise and {RANGE_M:.0f} m range. "
         "Frame faults go through the real `can_bus.codec.Receiver` with real encoded frames. A sample runs through the "
-        "real `MonitorRunner`, codec and `Player` on the virtual bus (its train: the guaranteed decelerations, the "
-        "emergency one of the weakest band, the force ramping up in twice the emergency build-up), and a few sessions on "
+        "real `MonitorRunner`, codec and `Player` on the virtual bus (its train: the world train's decelerations, by "
+        "default the declaration's worst corner, the emergency one of the weakest band, the force ramping up in twice "
+        "the equivalent build-up; its collisions outside sudden-120m are unsafe), and a few sessions on "
         "SocketCAN vcan0 in the user-mode-Linux sandbox. `railguard campaign --braking FILE.toml` runs it all with "
-        "another declaration.\n",
-        "**Unsafe outcome**: at some cycle a voted obstacle (the monitor's voted distance at the speed it was given, "
-        "with the closing speed and age of its fresh reports) or a true obstacle (the world's distance at the true "
-        "speed and closing speed, rounded up) at or inside the emergency intervention curve EBI "
-        "(`monitor.core.braking.curves` with the run's configuration, normal track and brakes) while the demand is not "
-        "emergency at that cycle and not at the next one (the last cycle of a run must show it itself). **Crash**: any "
+        "another declaration, `--world-train FILE.toml` with another world train.\n",
+        "**Unsafe outcome** (the world's verdict): the world's train reaches an obstacle, or comes closer to it than "
+        f"the margin ({summary.get('margin_m', 0.0):g} m; `--unsafe-margin`), that it could have stopped for: "
+        "*unavoidable* is an obstacle for which, when it came into sensor range, not even an emergency demand "
+        "from the next cycle on would have stopped the world's own train (its twin, stepped ahead). "
+        "The monitor's braking curves play no part in the verdict. **Crash**: any "
         "exception in a run, including those the core's fail-safe swallows and those the receive path counts as "
         "`undecodable`. **False braking** (issue 11's measure): a run with a brake demand, after the train entered, "
         "while no true obstacle is within sensor range, that is not the reaction to a fault the monitor diagnosed "
         "(reason bits `stale`, `safe_stop`, `deadline`, `train_input`, `init`, a refused table; an emergency the latch "
         "still holds after such a reaction counts as the reaction). **Braking without an obstacle** (the earlier "
         "measure): any such demand, fault reactions and trains held at the entry by a refused table included. "
-        "`sudden-120m` puts an object inside EBI: its collisions are physics, not the monitor.\n",
+        "`sudden-120m` puts an object inside the stopping distance: the world finds its collisions unavoidable, "
+        "and a check holds that it finds none elsewhere.\n",
         f"**Core-level runs**: {core['runs']:,} in {core['seconds']:.0f} s; unsafe {core['unsafe']}, crashes "
         f"{core['crashes']}, collisions {core['collisions']}, **false braking {core['false_braking']:,} "
         f"({_pct(core['false_braking_rate'])})**, braking without an obstacle {core['brake_without_obstacle']:,} "
@@ -1705,15 +1708,23 @@ def markdown(summary: dict, figure: Optional[str]) -> str:
     return "\n".join(lines)
 
 
-def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] = None) -> Section:
-    """The campaign as a report part; `config` (default Config()) carries the braking declaration."""
+def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] = None,
+            world: Optional[WorldTrain] = None, margin_m: float = 0.0, cluster: Cluster = Cluster()) -> Section:
+    """The campaign as a report part; `config` (default Config()) carries the braking
+    declaration, `world` the world's train (None: drawn inside the declaration), `cluster`
+    where the runs go."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    summary = run(quick, progress, config=config)
+    summary = run(quick, progress, config=config, world=world, margin_m=margin_m, cluster=cluster)
     fig = heatmap(summary["core"], out / "campaign_false_braking.png")
+    found = checks(summary)
+    summary["passed"] = all(c.passed for c in found)
     (out / "campaign.json").write_text(json.dumps(summary, indent=1, default=str))
-    return Section("Fault-injection campaign", markdown(summary, fig.name), checks(summary), [fig.name],
-                   summary["seconds"])
+    headline = {"runs": summary["runs"], "unsafe": summary["unsafe"], "collisions": summary["collisions"],
+                "workers": cluster.scheduler or cluster.size(),
+                "runs_digest": summary["runs_digest"], "world_train": summary["world_train"], "margin_m": margin_m}
+    return Section("Fault-injection campaign", markdown(summary, fig.name), found, [fig.name], summary["seconds"],
+                   headline)
 
 
 def main(argv: Optional[list] = None) -> int:

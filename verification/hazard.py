@@ -654,11 +654,11 @@ def section(out_dir: Path, quick: bool, progress: Progress) -> Section:
 
     # the paper's numbers
     rel = abs(pfn - PAPER_PFN) / PAPER_PFN
-    paper_arith = hazard_rate(PAPER_PFN)
-    rel_arith = abs(paper_arith - PAPER_HR) / PAPER_HR
     rel_hr = abs(hr - PAPER_HR) / PAPER_HR
     rate_var = dict((name, v) for name, _, v in var_vals)["random action rates in [0.1, 10]"]
     s = sncf()
+    # (the paper's own arithmetic, (2/24) 0.0016^3 and 16 h x 365 d x 15,000 trains, is shown in the
+    # table below, not checked: a check of constants cannot fail on a wrong implementation)
     checks += [
         Check("hazard: P[FN] independent of the action rates (unbounded reachability)",
               abs(rate_var - pfn) <= 1e-12, f"|diff| = {abs(rate_var - pfn):.1e} <= 1e-12"),
@@ -668,8 +668,6 @@ def section(out_dir: Path, quick: bool, progress: Progress) -> Section:
               f"min step along p_n {mono_n:.2e} > 0, along p_c {mono_c:.2e} > 0"),
         Check("hazard: P[FN](0.04, 0.04) vs paper 0.0016", rel <= PFN_REL_TOL,
               f"{pfn:.6g} vs 0.0016: rel {rel:.2%} <= {PFN_REL_TOL:.0%}"),
-        Check("hazard: paper's arithmetic (2/24) * 0.0016^3 = 3.413e-10", rel_arith <= 1e-3,
-              f"{paper_arith:.6g} vs 3.413e-10: rel {rel_arith:.1e} <= 1e-3"),
         Check("hazard: HR(3oo3) at (0.04, 0.04) vs paper 3.413e-10 /h", rel_hr <= HR_REL_TOL,
               f"{hr:.4g} vs 3.413e-10: rel {rel_hr:.2%} <= {HR_REL_TOL:.1%}"),
         Check("hazard: HR(3oo3) at (0.04, 0.04) below 1e-7 /h (SIL 3, paper's claim)", hr < THR_SIL3,
@@ -681,8 +679,6 @@ def section(out_dir: Path, quick: bool, progress: Progress) -> Section:
         Check("hazard: SNCF mean, SD, SEM of ESRs/year vs seed 004 (3.25, 1.7, 0.85)",
               round(s["mean"], 2) == 3.25 and round(s["sd"], 1) == 1.7 and round(s["sem"], 2) == 0.85,
               f"{s['mean']:.4g}, {s['sd']:.4g}, {s['sem']:.4g}"),
-        Check("hazard: SNCF H x U = 16 h x 365 d x 15000 trains = 87,600,000 h", s["hours"] == SNCF_PAPER["hours"],
-              f"{s['hours']:,} h"),
         Check("hazard: SNCF per-hour 95 % interval (normal, as stated) vs seed 004 [1.8e-8, 5.6e-8]",
               all(abs(float(f"{a:.2g}") - b) < 1e-12 * b for a, b in zip(s["ci_hour_normal"], SNCF_PAPER["ci_hour"])),
               f"[{s['ci_hour_normal'][0]:.3g}, {s['ci_hour_normal'][1]:.3g}] rounds to [1.8e-08, 5.6e-08]"),

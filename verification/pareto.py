@@ -26,6 +26,7 @@ from monitor.offline.params import override
 from . import evaluate
 from .evaluate import SEED, SIZES, draw_policies, hazard_axes, load_target, no_worse
 from .closed_loop import HORIZON_S
+from .scale import Cluster, map_ordered
 
 GRIDS = {
     "m1": [{"braking_weight": b, "release_cost": c} for c in (0.0, 5.0, 20.0) for b in (0.5, 1.0, 2.0, 4.0)],
@@ -95,18 +96,26 @@ def frontier(points: list[dict]) -> list[int]:
     return sorted(keep, key=lambda i: points[i]["unnecessary_braking"])
 
 
+def _point(job: tuple) -> dict:
+    """One point of the sweep (a dask task): solve, compile and judge."""
+    name, weights, out_dir, time_budget, quick, seed = job
+    table = solve_point(name, weights, out_dir, time_budget)
+    return {"weights": weights, "table": str(table), **judge_table(table, quick, seed)}
+
+
 def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[float] = None,
-          grid: Optional[list[dict]] = None, seed: int = SEED, progress: Optional[Callable[[str], None]] = None) -> dict:
+          grid: Optional[list[dict]] = None, seed: int = SEED, progress: Optional[Callable[[str], None]] = None,
+          cluster: Cluster = Cluster(1)) -> dict:
+    """Every weight vector of `grid` solved and judged, one dask task per point on `cluster`
+    (default: in this process; each solve is time-budgeted, so points that share a core get
+    less solver time each)."""
     say = progress or (lambda text: None)
     grid = GRIDS[name] if grid is None else grid
     out_dir = Path(out_dir)
     t0 = time.perf_counter()
-    points = []
-    for i, weights in enumerate(grid):
-        say(f"pareto {name}: point {i + 1}/{len(grid)} {weights}: solve and compile")
-        table = solve_point(name, weights, out_dir / f"{name}-point{i:02d}", time_budget)
-        say(f"pareto {name}: point {i + 1}/{len(grid)}: judging")
-        points.append({"weights": weights, "table": str(table), **judge_table(table, quick, seed)})
+    say(f"pareto {name}: {len(grid)} points (solve, compile and judge each) on {cluster.describe()}")
+    jobs = [(name, weights, out_dir / f"{name}-point{i:02d}", time_budget, quick, seed) for i, weights in enumerate(grid)]
+    points = map_ordered(_point, jobs, cluster, progress=say, label=f"pareto {name}", unit="points")
     defaults = MODELS[name].params      # belief tracking with the alpha vectors of the model's own weights
     default = next((i for i, w in enumerate(grid) if all(getattr(defaults, k, None) == v for k, v in w.items())), 0)
     say(f"pareto {name}: baselines (belief tracking with point {default}'s alpha vectors)")

@@ -34,6 +34,7 @@ class Section:
     checks: list[Check] = field(default_factory=list)
     figures: list[str] = field(default_factory=list)   # PNG file names written into out_dir
     seconds: float = 0.0
+    headline: dict = field(default_factory=dict)   # the part's headline figures, at the JSON's top level
 
 
 def timed(fn: Callable[..., Section], *args, **kwargs) -> Section:
@@ -76,5 +77,9 @@ def as_json(sections: list[Section]) -> dict:
     checks = [dict(json.loads(json.dumps(asdict(c), default=plain)), part=s.title) for s in sections for c in s.checks]
     for c in checks:
         c["passed"] = bool(c["passed"])
-    return {"passed": all(c["passed"] for c in checks), "checks": checks,
-            "parts": [{"title": s.title, "seconds": round(s.seconds, 2), "figures": s.figures} for s in sections]}
+    out = {"passed": all(c["passed"] for c in checks), "checks": checks,
+           "parts": [{"title": s.title, "seconds": round(s.seconds, 2), "figures": s.figures} for s in sections]}
+    for s in sections:
+        for key, value in s.headline.items():
+            out.setdefault(key, json.loads(json.dumps(value, default=plain)))
+    return out
