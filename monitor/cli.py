@@ -541,6 +541,34 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     return _run_evidence(args, ("campaign", "fuzz"))
 
 
+def cmd_stress(args: argparse.Namespace) -> int:
+    """Adaptive stress testing: the likeliest failure and P(collision per encounter)."""
+    from verification import stress
+    from verification.scale import Cluster, check
+    from verification.world_train import load
+
+    from .core.config import Config
+
+    cfg = _with_braking(Config(), args)
+    world = load(args.world_train) if args.world_train else None
+    cluster = Cluster(args.workers or 0, args.scheduler)
+    check(cluster)
+    started = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if not args.json:
+            print(f"[{time.perf_counter() - started:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    result = stress.run(args.table, args.encounter, Path(args.out), quick=args.quick, cfg=cfg, world=world,
+                        margin_m=args.unsafe_margin, seed=args.seed, cluster=cluster, progress=say)
+    if args.json:
+        print(json.dumps(result, default=str))
+    else:
+        sys.stdout.write(stress.render(result))
+        print("wrote " + "\n      ".join(result["files"]))
+    return 0
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -567,6 +595,37 @@ def _cluster_arguments(p: argparse.ArgumentParser, default: str = "one per core"
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on an existing dask.distributed cluster, e.g. tcp://10.0.0.5:8786 (its workers need "
                         "railguard installed); results are identical to a local run")
+
+
+def _stress_parser(sub) -> None:
+    from verification.stress import ENCOUNTERS
+
+    st = sub.add_parser(
+        "stress",
+        help="adaptive stress testing: the likeliest disturbance sequence that ends in a collision",
+        description="Search (cross-entropy method) for the likeliest sequence of sensor disturbances (a common-cause "
+                    "blindness of every channel, misses, lost frames, ghosts, distance noise) that makes the world's "
+                    "train hit an obstacle it could have stopped for, with the shipped table and the supervision in the "
+                    "loop; prune it to the disturbances it needs; write it as a candump log that `railguard replay` "
+                    "reproduces (checked) and as a cosim scenario of the encounter; estimate P(collision per "
+                    "encounter) by importance sampling against naive Monte Carlo. Encounters: "
+                    + "; ".join(f"{e.name}: {e.description}" for e in ENCOUNTERS.values()) + ".",
+    )
+    st.add_argument("--table", choices=["m1", "m2"], default="m2", help="the shipped table in the loop (default: %(default)s)")
+    st.add_argument("--encounter", choices=sorted(ENCOUNTERS), default="edge-30", help="default: %(default)s")
+    st.add_argument("--quick", action="store_true", help="6 iterations of 100 runs, 400 importance samples (about a minute)")
+    st.add_argument("--seed", type=int, default=0, help="root of every run's seed (default: %(default)s)")
+    st.add_argument("--braking", metavar="FILE.toml", help=BRAKING_HELP)
+    st.add_argument("--world-train", metavar="FILE.toml",
+                    help="the world's train (default: the braking declaration's worst corner)")
+    st.add_argument("--unsafe-margin", type=float, default=0.0, metavar="M",
+                    help="a gap below M metres counts as a failure (default: %(default)s)")
+    _cluster_arguments(st)
+    st.add_argument("--out", default="railguard-out/stress", metavar="DIR", help="output folder (default: %(default)s)")
+    st.add_argument("--json", action="store_true",
+                    help='print {"most_likely_failure": null or {"log_likelihood", "events", "candump", "cosim", ...}, '
+                         '"rare_event": {...}, ...}')
+    st.set_defaults(func=cmd_stress)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -767,7 +826,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
     v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
-    v.add_argument("--part", action="append", choices=["closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof"],
+    v.add_argument("--part", action="append", choices=["closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz",
+                            "proof"],
                    help="run only this part (repeatable)")
     v.add_argument("--json", action="store_true",
                    help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')
@@ -802,6 +862,7 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--json", action="store_true",
                     help='print {"passed": bool, "unsafe": N, "runs": N, "runs_digest": "sha256", "checks": [...], ...}')
     ca.set_defaults(func=cmd_campaign)
+    _stress_parser(sub)
     return parser
 
 

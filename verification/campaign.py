@@ -438,12 +438,11 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
 
     # ---- the world: its own train (not the monitor's declaration), its timing, the obstacles
     world = world or world_train.for_run(cfg, spec.key)
-    twin = world_train.TrainTwin(world, scen.speed_mps)
+    twin = world_train.TrainTwin(world, scen.speed_mps, record=True)
     substeps = max(1, round(period / (1000 * world_train.STEP_S)))
     late_steps = math.ceil(world.output_latency_s / world_train.STEP_S - 1e-9)     # the old demand still acts
     phase_ms = int.from_bytes(hashlib.sha256(f"railguard-campaign/{spec.key}/phase".encode()).digest()[:2], "little") % period
     seen_ago_s = phase_ms / 1000.0 + world.sensor_latency_s     # a report handed now was sensed this long ago
-    hist_x, hist_v = [0.0], [scen.speed_mps]                     # the train at every internal step since the entry
     t = 0.0
     speed = scen.speed_mps
     started = False
@@ -457,17 +456,6 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     in_sight: set = set()           # obstacles that have come into sensor range
     unavoidable: set = set()        # ... when not even an emergency demand at the next cycle stopped the world's train
     closest: dict = {}              # obstacle -> smallest gap, metres
-
-    def train_at(at: float) -> tuple[float, float]:
-        """(position, speed) of the world's train at world time `at` (interpolated)."""
-        if at <= 0.0:
-            return 0.0, hist_v[0]
-        f = min(at / world_train.STEP_S, len(hist_x) - 1.0)
-        i = min(int(f), len(hist_x) - 2) if len(hist_x) > 1 else 0
-        w = f - i
-        if len(hist_x) == 1:
-            return hist_x[0], hist_v[0]
-        return hist_x[i] + w * (hist_x[i + 1] - hist_x[i]), hist_v[i] + w * (hist_v[i + 1] - hist_v[i])
 
     def nearest(at: float, position: float):
         """(gap, obstacle speed, type, index) of the nearest obstacle there at `at`, or None."""
@@ -509,7 +497,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         # ---- sensors (what they saw seen_ago_s before this tick, received phase_ms before it), faults, frames, latch
         stamp = max(0, tick - phase_ms)
         seen_at = max(0.0, t - seen_ago_s)
-        seen_x, seen_v = train_at(seen_at) if started else (0.0, 0.0)
+        seen_x, seen_v = twin.at(seen_at) if started else (0.0, 0.0)
         seen = nearest(seen_at, seen_x)
         if seen is None or seen[0] > RANGE_M or seen[0] < 0:
             absent = True
@@ -653,8 +641,6 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         if started and twin.time < scen.duration_s - 1e-9:
             for j in range(substeps):
                 twin.step(applied_before if j < late_steps else applied)
-                hist_x.append(twin.position)
-                hist_v.append(twin.speed)
                 hit = nearest(twin.time, twin.position)
                 if hit is None:
                     continue

@@ -14,8 +14,8 @@ from pathlib import Path
 from .report import Progress, Section, timed, write_report
 from .scale import ClusterError
 
-PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "fuzz", "proof")
-CONFIGURED = ("campaign",)      # parts whose section takes the monitor's Config (`--braking FILE.toml`)
+PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof")
+CONFIGURED = ("campaign", "stress")      # parts whose section takes the world (`--braking`, `--world-train`, workers)
 
 
 def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, ...] = PARTS,

@@ -58,7 +58,7 @@ def client(cluster: Cluster) -> Iterator:
             c.close()
         return
     local = LocalCluster(n_workers=cluster.size(), threads_per_worker=1, processes=True, dashboard_address=":0",
-                         silence_logs=logging.ERROR)
+                         silence_logs=logging.CRITICAL)
     c = Client(local)
     try:
         yield c

@@ -90,7 +90,7 @@ class TrainTwin:
     """fmu/c/train/model.c's internal_step in Python, for a train that has entered (its
     demands obeyed at once): same order of operations, same floats."""
 
-    def __init__(self, world: WorldTrain, speed: float):
+    def __init__(self, world: WorldTrain, speed: float, record: bool = False):
         self.w = world
         self.speed = float(speed)
         self.cruise = float(speed)
@@ -107,12 +107,25 @@ class TrainTwin:
         self.delay_steps = min(MAX_DELAY_STEPS, int(math.floor(world.brake_delay / STEP_S + 0.5)))
         self.ring = [0] * (MAX_DELAY_STEPS + 1)
         self.head = 0
+        self.history = ([0.0], [float(speed)]) if record else None    # position, speed at every step
 
     def copy(self) -> "TrainTwin":
         twin = TrainTwin.__new__(TrainTwin)
         twin.__dict__.update(self.__dict__)
         twin.ring = list(self.ring)
+        twin.history = None
         return twin
+
+    def at(self, t: float) -> tuple[float, float]:
+        """(position, speed) at time `t` <= now, interpolated between steps (needs record=True):
+        what a sensor that sampled at `t` saw."""
+        xs, vs = self.history
+        f = min(max(t, 0.0) / STEP_S, len(xs) - 1.0)
+        i = min(int(f), len(xs) - 2)
+        if i < 0:
+            return xs[0], vs[0]
+        w = f - i
+        return xs[i] + w * (xs[i + 1] - xs[i]), vs[i] + w * (vs[i + 1] - vs[i])
 
     def _level_decel(self, level: int, v: float) -> float:
         if level == 0:
@@ -183,6 +196,9 @@ class TrainTwin:
         self.speed = v_new
         self.position += dx
         self.acceleration = a
+        if self.history is not None:
+            self.history[0].append(self.position)
+            self.history[1].append(self.speed)
 
     def measured_speed(self) -> float:
         """What the train's speed sensor reports (low by its error)."""
