@@ -155,7 +155,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     from verification import evaluate as ev
 
-    result = ev.evaluate(args.table, quick=args.quick, seed=args.seed,
+    from verification.scale import Cluster, check
+
+    cluster = Cluster(args.workers or 1, args.scheduler)
+    check(cluster)
+    result = ev.evaluate(args.table, quick=args.quick, seed=args.seed, cluster=cluster,
                          progress=None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True)))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -694,6 +698,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", metavar="DIR", default="railguard-out", help="output folder (default: %(default)s)")
     e.add_argument("--no-plot", action="store_true", help="do not draw the plot")
     e.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    _cluster_arguments(e, "1: the policies one after the other", "each policy a dask task; ")
     e.add_argument("--json", action="store_true", help="print one JSON object (the figures and the files written)")
     e.set_defaults(func=cmd_evaluate)
 

@@ -72,3 +72,14 @@ def test_campaign_cli_world_train_worse_than_declared_is_unsafe_and_readme_comma
                         r"runs digest ([0-9a-f]{64})", good.stdout)
     assert summary and int(summary.group(2)) == 0 and summary.group(4) != data["runs_digest"]
     assert (tmp_path / "railguard-out" / "campaign" / "report.md").is_file()
+
+
+def test_evaluate_monte_carlo_is_the_same_on_two_workers():
+    from verification import evaluate as ev
+
+    target = ev.load_target("m1")
+    sizes = ev.SIZES["quick"]
+    one = ev.judge(target, sizes, 5, names=("table", "threshold"), cluster=Cluster(1))
+    two = ev.judge(target, sizes, 5, names=("table", "threshold"), cluster=Cluster(2))
+    assert list(two) == ["table", "threshold"] and one == two
+    assert one["table"]["p_hazard"] < one["threshold"]["p_hazard"]

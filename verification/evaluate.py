@@ -36,6 +36,7 @@ from . import seed000, seed001
 from .closed_loop import HORIZON_S, hazard_states, hazard_within
 from .fastcore import TablePolicy
 from .policies import BASELINES, BeliefTracking, finite_baselines, supervised, supervision_floor
+from .scale import Cluster, map_ordered
 from .world_metrics import wilson_upper
 
 METRICS = ("p_hazard", "unnecessary_braking", "stops_per_train_hour", "demand_changes_per_encounter")
@@ -146,38 +147,44 @@ def _policies(target: Target) -> dict[str, tuple[Optional[Controller], Optional[
     return out
 
 
-def judge(target: Target, sizes: Sizes, seed: int, names: Optional[tuple[str, ...]] = None,
-          say: Callable[[str], None] = lambda text: None) -> dict[str, dict]:
-    """name -> the METRICS figures of each policy in `names` (default: the table and every
-    baseline available): p_hazard on the model's closed loop, the rest in the seed world."""
+def _judge_one(job: tuple) -> dict:
+    """One policy's figures (a dask task): p_hazard on the model's closed loop, the rest in
+    the seed world; its randomness comes from `seed` alone."""
+    target, name, sizes, seed = job
+    ctrl, policy = _policies(target)[name]
     model = target.model
     steps = int(round(HORIZON_S / 0.1))
-    rows: dict[str, dict] = {}
-    for name, (ctrl, policy) in _policies(target).items():
-        if names is not None and name not in names:
-            continue
-        say(f"evaluate {target.label}: {name}: hazard on the model's closed loop")
-        if ctrl is not None:
-            row = {"p_hazard": hazard_exact(model, ctrl, steps), "p_hazard_ci": 0.0, "p_hazard_how": "exact"}
-        else:
-            episodes = belief_episodes(model, sizes)
-            p, ci = hazard_belief(model, *target.alphas, steps, episodes, seed)
-            row = {"p_hazard": p, "p_hazard_ci": ci, "p_hazard_how": f"Monte Carlo, {episodes} episodes"}
-        say(f"evaluate {target.label}: {name}: {sizes.trains} trains x {sizes.seconds:.0f} s in the {model.name} seed world")
-        row.update(world_cost(target, policy, sizes, seed))
-        rows[name] = row
-    return rows
+    if ctrl is not None:
+        row = {"p_hazard": hazard_exact(model, ctrl, steps), "p_hazard_ci": 0.0, "p_hazard_how": "exact"}
+    else:
+        episodes = belief_episodes(model, sizes)
+        p, ci = hazard_belief(model, *target.alphas, steps, episodes, seed)
+        row = {"p_hazard": p, "p_hazard_ci": ci, "p_hazard_how": f"Monte Carlo, {episodes} episodes"}
+    row.update(world_cost(target, policy, sizes, seed))
+    return row
+
+
+def judge(target: Target, sizes: Sizes, seed: int, names: Optional[tuple[str, ...]] = None,
+          say: Callable[[str], None] = lambda text: None, cluster: Cluster = Cluster(1)) -> dict[str, dict]:
+    """name -> the METRICS figures of each policy in `names` (default: the table and every
+    baseline available), one dask task per policy on `cluster` (default: this process)."""
+    wanted = [name for name in _policies(target) if names is None or name in names]
+    say(f"evaluate {target.label}: {', '.join(wanted)}: hazard on the model's closed loop, {sizes.trains} trains x "
+        f"{sizes.seconds:.0f} s in the {target.model.name} seed world, on {cluster.describe()}")
+    rows = map_ordered(_judge_one, [(target, name, sizes, seed) for name in wanted], cluster, progress=say,
+                       label=f"evaluate {target.label}", unit="policies")
+    return dict(zip(wanted, rows))
 
 
 def evaluate(spec: str, quick: bool = False, seed: int = SEED,
-             progress: Optional[Callable[[str], None]] = None) -> dict:
+             progress: Optional[Callable[[str], None]] = None, cluster: Cluster = Cluster(1)) -> dict:
     """`{"table": {...}, "baselines": {...}, ...}`: every METRICS figure for the table and each
     baseline (belief_tracking is absent when the table's alpha vectors are not beside it)."""
     sizes = SIZES["quick" if quick else "full"]
     target = load_target(spec)
     model = target.model
     t0 = time.perf_counter()
-    rows = judge(target, sizes, seed, say=progress or (lambda text: None))
+    rows = judge(target, sizes, seed, say=progress or (lambda text: None), cluster=cluster)
     table = rows.pop("table")
     missing = [b for b in BASELINES if b not in rows]
     return {
