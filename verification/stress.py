@@ -293,10 +293,10 @@ def evaluate_all(model: str, enc: Encounter, ds: list[Disturbance], world, cfg: 
 @dataclass(frozen=True)
 class Budget:
     samples: int = 200        # per cross-entropy iteration
-    iterations: int = 12
+    iterations: int = 10
     elite: float = 0.1
     smoothing: float = 0.7
-    is_samples: int = 2000    # importance sampling (and naive Monte Carlo) after the search
+    is_samples: int = 1000    # importance sampling (and naive Monte Carlo) after the search
 
 
 QUICK = Budget(samples=100, iterations=6, is_samples=400)
