@@ -832,7 +832,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--quick", action="store_true", help="smaller Monte Carlo runs and grids (under 2 minutes; what CI runs)")
     v.add_argument("--out", default="railguard-out/verify", metavar="DIR", help="report folder (default: %(default)s)")
     v.add_argument("--part", action="append", choices=["closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz",
-                            "proof"],
+                            "proof", "mutation"],
                    help="run only this part (repeatable)")
     v.add_argument("--json", action="store_true",
                    help='print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')

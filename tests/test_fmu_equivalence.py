@@ -33,7 +33,7 @@ from monitor.tables import read
 
 SEQUENCES_PER_TABLE = 5000
 
-ODD_FLOATS = [math.nan, math.inf, -math.inf, -0.0, -1.0, -1e-9, 6000.0, 6000.05, 150.0, 150.004, -150.004,
+ODD_FLOATS = [math.nan, math.inf, -math.inf, -0.0, -1.0, -1e-9, 6000.0, 6000.05, 150.0, 150.004, -150.0, -150.004,
               120.0, 120.004, 1e300, -1e300, 5e-324]
 ODD_INTS = [-1, 3, 7, -(2 ** 31), 2 ** 31 - 1, 100]
 PERIOD_MS = 100
@@ -200,11 +200,12 @@ def random_step(b: Bytes, world: dict) -> list:
 def edge_steps(b: Bytes, cfg) -> list:
     """Every channel reports the obstacle on (or 1 dm either side of) a curve for the
     cycle in which the report will be `age` cycles old; then `age` silent cycles. Now and
-    then one channel disputes it (ABSENT, too far, DEGRADED)."""
+    then one channel disputes it (ABSENT, exactly the distance tolerance away or one dm
+    beyond it, DEGRADED), or one module alone sees it, or all but one module."""
     speed = b.pick(edge_speeds(cfg)) if b.u8() & 1 else b.u16() % 12001
     track, brake = (b.u8() & 1, b.u8() & 1) if b.u8() % 3 == 0 else (0, 0)
     closing = b.pick([speed, speed, speed + b.u16() % 1001, speed - b.u16() % 1001, 0, cfg.fast_closing_cms,
-                      cfg.fast_closing_cms - 1, b.u16() % 30001 - 15000])
+                      cfg.fast_closing_cms - 1, b.u16() % 30001 - 15000, -15000, 15000, -1])
     closing = max(-15000, min(15000, closing))
     t = cfg.timeout_cycles
     age = b.pick([0, 0, 0, t, t, t + 1, 1 + b.u8() % t])
@@ -214,22 +215,28 @@ def edge_steps(b: Bytes, cfg) -> list:
         d = b.u16() % (MAX_DISTANCE_DM + 1)
     ch = ChannelInput(1, metres(d), closing_mps(closing), b.u8() % 3, True)
     chans = [ch] * CHANNELS
-    odd = b.u8() % 8
+    odd = b.u8() % 11
     k = b.u8() % (2 * cfg.modules)
     if odd == 0:
         chans[k] = CLEAR                                              # a 2oo2 ABSENT/PRESENT split
-    elif odd == 1 and d + cfg.distance_tolerance_dm + 1 <= MAX_DISTANCE_DM:
-        chans[k] = ch._replace(distance=metres(d + cfg.distance_tolerance_dm + 1))   # beyond tolerance
+    elif odd in (1, 3) and d + cfg.distance_tolerance_dm + 1 <= MAX_DISTANCE_DM:
+        beyond = 1 if odd == 1 else 0                                 # one dm beyond the tolerance, or exactly it
+        chans[k] = ch._replace(distance=metres(d + cfg.distance_tolerance_dm + beyond))
     elif odd == 2:
         chans[k] = ch._replace(status=2)
+    elif odd == 4:                                                    # one module alone sees the obstacle
+        chans = [ch if i // 2 == k // 2 else CLEAR for i in range(CHANNELS)]
+    elif odd == 5:                                                    # all modules but one see it
+        chans = [CLEAR if i // 2 == k // 2 else ch for i in range(CHANNELS)]
     v = speed_mps(speed)
     return [(StepInput(tuple(chans), v, track, brake), 1)] + [(StepInput((SILENT,) * CHANNELS, v, track, brake), 1)] * age
 
 
 def release_steps(b: Bytes, cfg) -> list:
-    """An emergency inside EBI at a constant speed, then its cause gone (clear track, or
-    the obstacle back beyond SBI) for release_confirm_cycles - 1, + 0 or + 1 cycles."""
-    speed = 1 + b.u16() % 12000
+    """An emergency inside EBI at a constant speed (1 cm/s now and then), then its cause
+    gone (clear track, or the obstacle back beyond SBI) for release_confirm_cycles - 1, + 0
+    or + 1 cycles, at the same speed, at 1 cm/s or at standstill."""
+    speed = b.pick([1, 1 + b.u16() % 12000, 1 + b.u16() % 12000])
     v = speed_mps(speed)
     aims = targets(cfg, speed, 0, 0, speed, 0)
     inside = ChannelInput(1, metres(min(MAX_DISTANCE_DM, max(0, aims["ebi"] - b.u8() % 50))), closing_mps(speed), 0, True)
@@ -237,7 +244,8 @@ def release_steps(b: Bytes, cfg) -> list:
     beyond = aims["sbi"] + 1 + b.u8() % 20
     gone = CLEAR if b.u8() & 1 or beyond > MAX_DISTANCE_DM else inside._replace(distance=metres(beyond))
     n = max(1, cfg.release_confirm_cycles + b.pick([-1, 0, 0, 1]))
-    return steps + [(StepInput((gone,) * CHANNELS, v), 1)] * n
+    v_gone = b.pick([v, v, v, speed_mps(1), 0.0])
+    return steps + [(StepInput((gone,) * CHANNELS, v_gone), 1)] * n
 
 
 def decode_sequence(data: bytes) -> tuple[dict, list]:

@@ -14,7 +14,8 @@ from pathlib import Path
 from .report import Progress, Section, timed, write_report
 from .scale import ClusterError
 
-PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof")
+PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof",
+         "mutation")
 CONFIGURED = ("campaign", "stress")      # parts whose section takes the world (`--braking`, `--world-train`, workers)
 
 
