@@ -834,14 +834,13 @@ def section(out_dir, quick: bool, progress: Progress, config=None):
     the listed equivalent mutants not run; full: all of monitor/core and the listed
     equivalents run to show that they survive). `config` is accepted for the report's
     uniform signature; the mutants run the core's own tests, which set their configurations."""
-    from verification.report import Check, Section, md_table
+    from verification.report import Section, md_table
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = list(REPORT_QUICK_FILES if quick else PY_FILES)
     summary = run("python", files, progress=progress, skip_equivalent=quick)
     (out / "mutation.json").write_text(json.dumps(summary, indent=1))
-    non_eq = summary["total"] - summary["equivalent"]
     header = ["file", "mutants", "killed", "equivalent", "survived", "timeouts (killed)", "score"]
     rows = _score_rows(summary)
     rows.append(["**all**", summary["total"], summary["killed"], summary["equivalent"], summary["survived"],
@@ -862,16 +861,35 @@ def section(out_dir, quick: bool, progress: Progress, config=None):
     md.append(f"\nEquivalent mutants ({len([k for k in eq if k.split(':', 1)[0] in summary['by_file']])} in these "
               f"files, `verification/mutation_equivalents.toml`):\n")
     md += [f"- `{k}`: {v}" for k, v in eq.items() if k.split(":", 1)[0] in summary["by_file"]]
+    checks = [_score_check("python core", summary, files)]
+    seconds = summary["seconds"]
+    if not quick:                   # the C core's decision functions, judged by the comparison test alone
+        c = run("c", progress=progress)
+        (out / "mutation-c.json").write_text(json.dumps(c, indent=1))
+        seconds += c["seconds"]
+        md.append(f"\n**C core** (`python -m verification.mutation --target c`: the decision functions of "
+                  f"`rg_core.c`, each mutant compiled and judged by `{', '.join(C_TESTS)}` alone, {C_SEQUENCES:,} "
+                  f"sequences per table): {c['total']} mutants, {c['killed']} killed, {c['equivalent']} equivalent, "
+                  f"{c['survived']} survived, score {100 * c['score']:.1f} %, {c['seconds']:.0f} s.\n")
+        md += [f"- `{x['id']}` survived" for x in c["survivors"]]
+        checks.append(_score_check("C core (by the Python-vs-C comparison alone)", c, list(C_FILES)))
+    return Section("Mutation testing of the core", "\n".join(md) + "\n", checks, [], seconds)
+
+
+def _score_check(what: str, summary: dict, files: list):
+    """100 % of the non-equivalent mutants killed, no error, no listed equivalent killed, no stale id."""
+    from verification.report import Check
+
+    non_eq = summary["total"] - summary["equivalent"]
     ok = (summary["survived"] == 0 and summary["errors"] == 0 and not summary["equivalent_but_killed"]
           and not summary["stale_equivalents"])
-    checks = [Check("mutation score python core: killed/non-equivalent = 100 %", ok,
-                    f"{summary['killed']}/{non_eq} = {100 * summary['score']:.1f} %"
-                    + (f"; {len(summary['equivalent_but_killed'])} listed equivalent but killed" if summary["equivalent_but_killed"] else "")
-                    + (f"; {len(summary['stale_equivalents'])} stale equivalent ids" if summary["stale_equivalents"] else "")
-                    + (f"; {summary['errors']} errors" if summary["errors"] else ""),
-                    {"total": summary["total"], "equivalent": summary["equivalent"], "survived": summary["survived"],
-                     "timeouts": summary["timeouts"], "files": files})]
-    return Section("Mutation testing of the core", "\n".join(md) + "\n", checks, [], summary["seconds"])
+    return Check(f"mutation score {what}: killed/non-equivalent = 100 %", ok,
+                 f"{summary['killed']}/{non_eq} = {100 * summary['score']:.1f} %"
+                 + (f"; {len(summary['equivalent_but_killed'])} listed equivalent but killed" if summary["equivalent_but_killed"] else "")
+                 + (f"; {len(summary['stale_equivalents'])} stale equivalent ids" if summary["stale_equivalents"] else "")
+                 + (f"; {summary['errors']} errors" if summary["errors"] else ""),
+                 {"total": summary["total"], "equivalent": summary["equivalent"], "survived": summary["survived"],
+                  "timeouts": summary["timeouts"], "files": files})
 
 
 def main(argv: Optional[list[str]] = None) -> int:

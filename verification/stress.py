@@ -657,6 +657,15 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
                      f"IS {rare['p_importance_sampling']:.3g} ({rare['ci95'][0]:.2g}..{rare['ci95'][1]:.2g}, "
                      f"ESS {rare['effective_sample_size']:.0f})",
                      f"naive MC {rare['naive']['failures']}/{rare['samples']} (95 % upper {rare['naive']['ci95_upper']:.2g})"])
+    from .hazard import THR_CATASTROPHIC, THR_SIL3
+
+    thr_rows = []
+    for name, r in results.items():
+        rare = r["rare_event"]
+        for how, p, hi in (("importance sampling", rare["p_importance_sampling"], rare["ci95"][1]),
+                           ("naive Monte Carlo", rare["naive"]["p"], rare["naive"]["ci95_upper"])):
+            thr_rows.append([name, how, f"{p:.3g} /h (95 % upper {hi:.2g})",
+                             f"{p / THR_SIL3:.2g}x" if p else "0", f"{p / THR_CATASTROPHIC:.2g}x" if p else "0"])
     md = ("The search (`railguard stress`, cross-entropy method; `verification/stress.py`) looks for the likeliest "
           "disturbance sequence that makes the world's train (the declaration's worst corner) hit an obstacle it could "
           "have stopped for, in the hardest encounter the supervision is built for: a static object appearing one cycle "
@@ -672,6 +681,10 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
           "encounter must stay below those numbers. `m2 held` (full mode) is the same table with every emergency held to "
           "standstill (`emergency_release = 0`): the other side of the release trade-off.\n\n"
           + md_table(["table", "what", "log-likelihood / estimate", "disturbance"], rows)
+          + "\nThe rare-event estimates against the hazard section's tolerable hazard rates, at one such encounter "
+            "per train-hour (the collision rate per hour is then the probability per encounter):\n\n"
+          + md_table(["table", "estimate", "collisions per train-hour", "against THR 1e-7 /h (SIL 3)",
+                      "against 1e-9 /h (CSM-DT catastrophic)"], thr_rows)
           + "\n" + "".join(f"![stress {name}]({f})\n" for name, f in zip(results, figures)))
     return Section("Adaptive stress testing and rare events", md, checks, figures,
                    headline={"stress": {m: {"most_likely_failure": r["most_likely_failure"] and
