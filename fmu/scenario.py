@@ -35,7 +35,8 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 DEFAULT = "static-obstacle"
-FAULT_KINDS = ("none", "silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance", "contradiction")
+FAULT_KINDS = ("none", "silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance", "contradiction",
+               "blind")
 _TRAIN_PARAMS = {v.name: v for v in TRAIN if v.causality == "parameter"}
 _MONITOR_PARAMS = {v.name: v for v in MONITOR if v.causality == "parameter"}
 

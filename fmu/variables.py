@@ -178,7 +178,8 @@ def _train() -> list[Var]:
         Var("sensor.period", "Real", P, "fixed", 0.1, "s", "sensor reporting period", 0.01),
         Var("sensor.seed", "Integer", P, "fixed", 1, None, "seed of the sensor noise (same seed, same run)"),
         Var("fault.kind", "Integer", P, "fixed", 0, None,
-            "0 none, 1 silence, 2 stuck value, 3 noise burst, 4 missed detection, 5 degraded status, 6 out-of-range distance (NaN), 7 contradiction"),
+            "0 none, 1 silence, 2 stuck value, 3 noise burst, 4 missed detection, 5 degraded status, 6 out-of-range distance (NaN), 7 contradiction, "
+            "8 blind (every channel misses at once)"),
         Var("fault.channel", "Integer", P, "fixed", 1, None, "channel 1..6 the fault hits"),
         Var("fault.start", "Real", P, "fixed", 0.0, "s", "fault begins"),
         Var("fault.end", "Real", P, "fixed", 1e9, "s", "fault ends"),

@@ -5,6 +5,7 @@ speed-distance diagram (issue 11)."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import subprocess
 import sys
@@ -264,3 +265,22 @@ def test_commands_fail_in_one_line(tmp_path):
     corrupted.write_bytes(bytes(data))
     res = cli("build-fmu", "--model", str(corrupted))
     assert res.returncode == 2 and "SHA-256" in res.stderr
+
+
+def test_the_stress_failure_collides_in_cosimulation_and_held_emergencies_stop(monitor_fmus, train_fmu):
+    """The likeliest failure `railguard stress` found, replayed by the real FMUs: the train
+    FMU's `blind` fault (every channel misses) for 1.2 s during emergency braking releases
+    the revocable emergency and the train hits the obstacle; without the blindness, or with
+    every emergency held to standstill, it stops."""
+    scen = scenario.load("stress-blackout-release")
+    assert scen.train["fault.kind"] == scenario.FAULT_KINDS.index("blind")
+    res = cosim.run_scenario(scen, monitor_fmus[("m2", 2)], train_fmu)
+    assert res.outcome == "collision"
+    demand, t = column(res, "brake_demand"), column(res, "time_s")
+    start, end = scen.train["fault.start"], scen.train["fault.end"]
+    assert max(demand[i] for i, ti in enumerate(t) if ti < start) == 2                     # braking before
+    assert min(demand[i] for i, ti in enumerate(t) if start + 0.7 < ti < end) == 0         # released while blind
+    clear = dataclasses.replace(scen, train={**scen.train, "fault.kind": 0})
+    assert cosim.run_scenario(clear, monitor_fmus[("m2", 2)], train_fmu).outcome == "stopped"
+    held = dataclasses.replace(scen, monitor={**scen.monitor, "emergency_release": 0})
+    assert cosim.run_scenario(held, monitor_fmus[("m2", 2)], train_fmu).outcome == "stopped"

@@ -23,9 +23,10 @@ probability of a collision per encounter is estimated with likelihood-ratio weig
 95 % confidence interval, beside naive Monte Carlo at the same budget.
 
 A failure is written as a candump log (through the real codec) that `railguard replay`
-reproduces cycle by cycle, and as a co-simulation scenario of the same encounter (the train
-FMU injects one fault on one channel, so the six-channel disturbance is listed in it as a
-comment, not replayed).
+reproduces cycle by cycle, and as a co-simulation scenario of the same encounter: a single
+blindness is the train FMU's `blind` fault, so the real FMUs replay it
+(fmu/scenarios/stress-blackout-release.toml is the failure found; tests/test_cosim.py);
+other disturbances are listed in it as comments.
 """
 from __future__ import annotations
 
@@ -498,12 +499,13 @@ def replay_matches(model: str, enc: Encounter, d: Disturbance, world, cfg: Confi
 
 def write_cosim_scenario(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, path: Path) -> Path:
     """The encounter as a `railguard cosim` scenario: the world's train, the obstacle that
-    comes into view `appear_m` ahead (the sensors reach that far); the six-channel
-    disturbance listed as comments (the train FMU injects one fault on one channel)."""
+    comes into view `appear_m` ahead (the sensors reach that far) about APPEAR_S after the
+    start, and the disturbance: a single blindness as the train FMU's `blind` fault; any
+    other disturbance listed as comments (the FMU injects one fault)."""
     p = world.fmu_parameters()
     appear = enc.appear_m(cfg)
     lines = [f"# railguard stress: the likeliest failure found for table {model}, encounter {enc.name}",
-             f"# ({enc.description}); the disturbances it needs, which this FMU cannot inject all at once:"]
+             f"# ({enc.description}); the disturbances it needs:"]
     lines += [f"#   {json.dumps(e)}" for e in d.events(cfg.period_ms)]
     lines += [f'description = "stress {model} {enc.name}: obstacle comes into view {appear} m ahead at '
               f'{enc.speed_mps:g} m/s (the disturbances are listed above)"', "duration_s = 60.0", f'table = "{model}"',
@@ -511,6 +513,12 @@ def write_cosim_scenario(model: str, enc: Encounter, d: Disturbance, world, cfg:
     lines += [f"{k} = {v}" for k, v in p.items() if k not in ("mass",)]
     lines += ["", "[train.obstacle]", "present = true", f"position = {round(appear + enc.speed_mps * APPEAR_S, 1)}", "",
               "[train.sensor]", f"range = {appear}", f"noise_sigma = {NOISE_SIGMA_M}", "seed = 1"]
+    blind = np.nonzero(d.blind)[0]
+    alone = d.count() == len(blind) and len(blind) and blind[-1] - blind[0] + 1 == len(blind)
+    if alone:                           # one blindness and nothing else: the train FMU's `blind` fault is exactly it
+        t0 = APPEAR_S + int(blind[0]) * cfg.period_ms / 1000.0
+        lines += ["", "[train.fault]", 'kind = "blind"', f"start = {t0:.2f}",
+                  f"end = {t0 + len(blind) * cfg.period_ms / 1000.0:.2f}"]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
 

@@ -34,7 +34,8 @@ enum {
     FAULT_MISSED = 4,
     FAULT_DEGRADED = 5,
     FAULT_NAN_DISTANCE = 6,
-    FAULT_CONTRADICTION = 7
+    FAULT_CONTRADICTION = 7,
+    FAULT_BLIND = 8 /* every channel misses at once: a common cause (glare, spray) */
 };
 
 /* The channel getters below rely on the five channel variables being consecutive. */
@@ -124,7 +125,7 @@ static double grade_acc(const ModelData *m)
 
 static int fault_active(const ModelData *m, int channel, double t)
 {
-    return m->fault_kind != FAULT_NONE && m->fault_channel == channel + 1 &&
+    return m->fault_kind != FAULT_NONE && (m->fault_channel == channel + 1 || m->fault_kind == FAULT_BLIND) &&
            t >= m->fault_start && t < m->fault_end;
 }
 
@@ -201,7 +202,7 @@ static void sample_sensors(ModelData *m)
             continue; /* outputs frozen at their last values */
         }
         if (kind == FAULT_NOISE_BURST) sigma *= NOISE_BURST_FACTOR;
-        if (kind == FAULT_MISSED) seen = 0;
+        if (kind == FAULT_MISSED || kind == FAULT_BLIND) seen = 0;
 
         if (kind == FAULT_CONTRADICTION) {
             if (visible) {
@@ -487,8 +488,8 @@ int model_initialize(ModelData *m, char *msg, size_t len)
         FAIL("sensor.miss_probability = %g: must be in [0, 1]", m->sensor_miss_probability);
     if (!isfinite(m->sensor_period) || m->sensor_period < FIXED_STEP - SAMPLE_EPS)
         FAIL("sensor.period = %g: must be finite and >= %g s", m->sensor_period, FIXED_STEP);
-    if (m->fault_kind < 0 || m->fault_kind > 7)
-        FAIL("fault.kind = %ld: must be 0..7", (long)m->fault_kind);
+    if (m->fault_kind < 0 || m->fault_kind > 8)
+        FAIL("fault.kind = %ld: must be 0..8", (long)m->fault_kind);
     if (m->fault_channel < 1 || m->fault_channel > TRAIN_CHANNELS)
         FAIL("fault.channel = %ld: must be 1..%d", (long)m->fault_channel, TRAIN_CHANNELS);
     if (isnan(m->fault_start)) FAIL("fault.start is NaN");
