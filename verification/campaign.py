@@ -439,8 +439,6 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     # ---- the world: its own train (not the monitor's declaration), its timing, the obstacles
     world = world or world_train.for_run(cfg, spec.key)
     twin = world_train.TrainTwin(world, scen.speed_mps, record=True)
-    substeps = max(1, round(period / (1000 * world_train.STEP_S)))
-    late_steps = math.ceil(world.output_latency_s / world_train.STEP_S - 1e-9)     # the old demand still acts
     phase_ms = int.from_bytes(hashlib.sha256(f"railguard-campaign/{spec.key}/phase".encode()).digest()[:2], "little") % period
     seen_ago_s = phase_ms / 1000.0 + world.sensor_latency_s     # a report handed now was sensed this long ago
     t = 0.0
@@ -490,8 +488,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         v_in = min(MAX_SPEED_CMS, round(twin.measured_speed() * 100)) if started else 0
         if near is not None and 0 <= near[0] <= RANGE_M and near[3] not in in_sight:
             in_sight.add(near[3])
-            if started and not twin.stops_within(near[0], near[1], period / 1000.0 + world.output_latency_s,
-                                                 applied_before):
+            if started and not twin.can_stop_for(near[0], near[1], applied_before):
                 unavoidable.add(near[3])
 
         # ---- sensors (what they saw seen_ago_s before this tick, received phase_ms before it), faults, frames, latch
@@ -639,8 +636,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
         if not started and mode == NORMAL and demand == 0:
             started = True
         if started and twin.time < scen.duration_s - 1e-9:
-            for j in range(substeps):
-                twin.step(applied_before if j < late_steps else applied)
+            for _ in twin.cycle(applied_before, applied, period):
                 hit = nearest(twin.time, twin.position)
                 if hit is None:
                     continue
@@ -980,7 +976,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
                 finally:
                     for b in buses:
                         b.shutdown()
-        out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None, cfg,
+        out.update(evaluate_bus(runner.records, [(r.t_s, r.speed_mps, r.distance_m) for r in player.trace], None,
                                 spec.scenario, margin_m))
         out.update(player.outcome(), collision=player.collision, entered=player.started)
         out["rejects"] = dict(runner.receiver.rejected)
@@ -1000,7 +996,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
     return out
 
 
-def evaluate_bus(records, trace, trace_ticks, cfg: Config, scenario: str, margin_m: float = 0.0) -> dict:
+def evaluate_bus(records, trace, trace_ticks, scenario: str, margin_m: float = 0.0) -> dict:
     """The world's verdict on a run on a bus (unsafe: the player's train reached the obstacle
     or came closer than `margin_m`, outside UNAVOIDABLE), and false braking.
 
@@ -1202,7 +1198,7 @@ def vcan_sample(specs: list[BusSpec], progress: Progress, config: Optional[Confi
                    "crash": raw.get("error"), "unsafe": 0, "collision": False, "false_braking": False, "detected": {}}
             if "records" in raw:
                 records = [CycleRecord(*r) for r in raw["records"]]
-                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], cfg, spec.scenario,
+                run.update(evaluate_bus(records, [tuple(x) for x in raw["trace"]], raw["trace_ticks"], spec.scenario,
                                         margin_m))
                 run.update(raw["outcome"], collision=raw["collision"], entered=raw["entered"], rejects=raw["rejects"],
                            deadline_misses=raw["deadline_misses"], frames_received=raw["frames_received"],

@@ -210,8 +210,6 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
     period = cfg.period_ms
     state = cycle.initial_state(setup)
     twin = world_train.TrainTwin(world, enc.speed_mps, record=True)
-    late_steps = math.ceil(world.output_latency_s / world_train.STEP_S - 1e-9)
-    substeps = round(period / (1000 * world_train.STEP_S))
     appear_m = enc.appear_m(cfg)
     obstacle_at = None                  # world position of the obstacle once it appeared
     latched = [None] * CHANNELS
@@ -226,7 +224,7 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
         if started and obstacle_at is None and t >= APPEAR_S - 1e-9:
             obstacle_at = twin.position + appear_m
             k_appear = k
-            unavoidable = not twin.stops_within(appear_m, 0.0, period / 1000.0 + world.output_latency_s, applied_before)
+            unavoidable = not twin.can_stop_for(appear_m, 0.0, applied_before)
         j = None if k_appear is None else k - k_appear
         seen_x, seen_v = twin.at(t - world.sensor_latency_s) if started else (0.0, 0.0)
         gap = None if obstacle_at is None else obstacle_at - seen_x
@@ -253,8 +251,7 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
             if k > 100:
                 raise RuntimeError("the monitor did not let the train enter within 10 s")
             continue
-        for s in range(substeps):
-            twin.step(applied_before if s < late_steps else out.demand)
+        for _ in twin.cycle(applied_before, out.demand, period):
             if obstacle_at is not None:
                 g = obstacle_at - twin.position
                 closest = min(closest, g)

@@ -31,6 +31,7 @@ STEP_S = 0.01                 # the FMU's FIXED_STEP
 G = 9.81
 SPEED_GAIN = 1.0              # 1/s, the FMU's cruise controller
 MAX_DELAY_STEPS = 500
+REACTION_S = 0.1              # the world's sensors report every 100 ms: the earliest any monitor can know
 
 
 class WorldTrainError(ValueError):
@@ -199,6 +200,21 @@ class TrainTwin:
         if self.history is not None:
             self.history[0].append(self.position)
             self.history[1].append(self.speed)
+
+    def cycle(self, before: int, demand: int, period_ms: int):
+        """The internal steps of one monitor cycle (a generator, one yield per step): the
+        previous demand `before` still acts for the output latency, then `demand`."""
+        late = math.ceil(self.w.output_latency_s / STEP_S - 1e-9)
+        for j in range(max(1, round(period_ms / (1000 * STEP_S)))):
+            self.step(before if j < late else demand)
+            yield
+
+    def can_stop_for(self, gap_m: float, obstacle_speed: float, held: int) -> bool:
+        """Whether the collision with an obstacle that has just come into sensor range is
+        avoidable: this train stops short of it with an emergency demand from one sensor report
+        (REACTION_S) plus the output latency on, `held` acting meanwhile. The allowance is the
+        world's own, not the monitor's cycle."""
+        return self.stops_within(gap_m, obstacle_speed, REACTION_S + self.w.output_latency_s, held)
 
     def measured_speed(self) -> float:
         """What the train's speed sensor reports (low by its error)."""
