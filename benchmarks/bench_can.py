@@ -23,7 +23,7 @@
 4. Flood on a real vcan0 (`--vcan`): tests/vcan_flood.sh in the user-mode Linux sandbox
    (can_bus.vcan), one boot per flood kind (`random`, `channel0`, `mix`: FD/extended/remote
    frames, `foreign`), cangen at full speed (`-g 0 -i`); the monitor is the real
-   `python -m monitor.cli run` process with kernel receive filters. Printed per flood:
+   `python -m railguard run` process with kernel receive filters. Printed per flood:
    offered rate (vcan0 tx_packets per second), handled rate (the monitor's frames_received
    per second of flood, calm traffic subtracted), largest BrakeDemand gap over the run
    (candump, kernel timestamps), the same less the sandbox's own stalls (a 10 ms cangen

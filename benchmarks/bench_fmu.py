@@ -110,7 +110,7 @@ def main() -> int:
         t = Path(tmp)
         fmus = {m: build.build_monitor(read(m), 2, t) for m in ("m1", "m2")}
         train = build.build_train(t)
-        for name in ("static-obstacle", "moving-obstacle", "no-obstacle"):
+        for name in ("static-600m-20", "train-ahead-500m-25", "no-obstacle"):
             figures["cosim"].append(bench_cosim(name, t, fmus, train))
     if args.json:
         print(json.dumps(figures))

@@ -2,7 +2,7 @@
 
 Every period it reads the newest valid BrakeDemand (a demand older than three periods, or
 none at all, is read as emergency: the train fails safe), moves the train (brake force
-building up over `brake_delay_s`), and sends TrainState and one ObstacleReport per channel
+building up over `brake_buildup_s`), and sends TrainState and one ObstacleReport per channel
 with Gaussian distance noise, missed detections and the scenario's injected faults.
 
 The train waits at the entry of the section (speed 0) until the monitor reports NORMAL
@@ -83,8 +83,9 @@ class Player:
     def move(self, level: int) -> None:
         tr = self.scenario.train
         dt = self.period_ms / 1000
-        target = (0.0, tr.service_decel_mps2, tr.emergency_decel_mps2)[level]
-        rate = tr.emergency_decel_mps2 / tr.brake_delay_s if tr.brake_delay_s > 0 else math.inf
+        emergency = tr.emergency_at(self.speed)         # its speed band
+        target = (0.0, tr.service_decel_mps2, emergency)[level]
+        rate = emergency / tr.brake_buildup_s if tr.brake_buildup_s > 0 else math.inf
         self.decel += max(-rate * dt, min(rate * dt, target - self.decel))
         if self.collision:
             self.speed = 0.0
@@ -203,6 +204,9 @@ class Player:
         saw_obstacle = any(r.distance_m is not None for r in self.trace)
         if self.collision:
             result = "collision"
+        elif not self.finished and not (self.started and self.speed == 0.0):
+            # cut short (--duration, a signal) with the train still running or not yet started: no verdict
+            result = "incomplete"
         elif saw_obstacle:
             # "avoided": an obstacle was there, no collision, but the train never stood still
             result = "stopped" if self.stop_margin is not None else "avoided"

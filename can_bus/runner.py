@@ -33,6 +33,13 @@ SEND_RETRY_S = 0.005       # a full transmit queue is retried this long, then co
 SWEEP_FRAMES = 32          # frames already queued at the deadline still taken into the cycle,
 SWEEP_MS = 2               # ... for at most this long after it
 
+# MonitorStatus.ErrorFlags (the DBC's VAL_ table names each bit)
+FLAG_MODULES = 0b111              # bit m: module m+1 is in error
+FLAG_SYSTEM_ERROR = 1 << 3
+FLAG_STALE = 1 << 4
+FLAG_PERCEPTOR = 1 << 5
+NO_DISTANCE_RAW = 65535           # VotedDistance "no_distance"
+
 
 @dataclass
 class CycleRecord:
@@ -237,9 +244,9 @@ class MonitorRunner:
         return rec
 
     def send(self, out: Outputs, foreign_output: bool = False) -> None:
-        flags = (out.module_flags & 0b111) | (0b1000 if out.system_error else 0)
-        flags |= (0b10000 if out.reasons & R_STALE else 0) | (0b100000 if out.reasons & R_PERCEPTOR else 0)
-        distance = out.distance_dm if out.distance_dm != NO_DISTANCE else 65535
+        flags = (out.module_flags & FLAG_MODULES) | (FLAG_SYSTEM_ERROR if out.system_error else 0)
+        flags |= (FLAG_STALE if out.reasons & R_STALE else 0) | (FLAG_PERCEPTOR if out.reasons & R_PERCEPTOR else 0)
+        distance = out.distance_dm if out.distance_dm != NO_DISTANCE else NO_DISTANCE_RAW
         messages = (
             (BRAKE_DEMAND_ID, {"Level": out.demand, "Warning": int(out.warning), "Reason": out.reasons & 0xFFFF,
                                "Cycle": out.cycle & 0xFFFFFFFF}),
@@ -280,12 +287,18 @@ class MonitorRunner:
         self.send(out)
 
     # ------------------------------------------------------------------ loop
-    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False) -> None:
-        """Real-time loop: take frames until each period boundary, then run the cycle
-        (`on_cycle` sees every cycle's record)."""
+    def run(self, cycles: Optional[int] = None, stop: Callable[[], bool] = lambda: False,
+            before_cycle: Optional[Callable[[int], None]] = None) -> list:
+        """The one monitor loop, on a real bus or the simulated one: take frames until each
+        period boundary, then run the cycle (`on_cycle` sees every cycle's record);
+        `before_cycle(tick)` runs first (on a simulated clock: the player's turn). Returns the
+        records kept."""
         done = 0
         while (cycles is None or done < cycles) and not stop():
+            if before_cycle is not None:
+                before_cycle(self.next_tick)
             self.drain(self.next_tick)
             self.clock.sleep_until_ms(self.next_tick)
             self.cycle()
             done += 1
+        return self.records

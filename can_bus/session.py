@@ -118,7 +118,9 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "cycles": len(runner.records),
         "demands": {name: levels.get(name, 0) for name in DEMAND_NAMES},
         "demand_changes": changes,
-        "first_emergency_s": next((r.tick / 1000 for r in runner.records if r.demand == 2 and r.mode != 0), None),
+        "init_cycles": sum(1 for r in runner.records if r.mode == 0),     # start-up: emergency until sensors are fresh
+        "first_emergency_after_init_s": next((r.tick / 1000 for r in runner.records if r.demand == 2 and r.mode != 0),
+                                             None),
         "faults_detected": detected_faults(runner),
         "frames_received": runner.frames_received,
         "frames_rejected": runner.receiver.rejected_total,
@@ -145,7 +147,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
 
 
 def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title: str) -> Path:
-    from .plot import plot_run
+    from monitor.plot import plot_run
 
     recs = runner.records
     t = [r.tick / 1000 for r in recs]
@@ -165,7 +167,7 @@ def speed_distance(runner: MonitorRunner, player: Optional[Player]):
     """The run's speed-distance picture: the monitor's curves for the scenario's obstacle
     (the nearest at the end of the run) and the train's trajectory once it entered the
     section; without an obstacle, the trajectory against the monitor's record alone."""
-    from .plot import SpeedDistance
+    from monitor.plot import SpeedDistance
 
     recs = runner.records
     cfg = runner.setup.config
@@ -230,14 +232,31 @@ class StopOnSignal:
             signal.signal(sig, handler)
 
 
+def reporter(recorder: Recorder, show: Optional[Callable[[str], None]], player: Optional[Player],
+             bus_state: Callable[[], str] = lambda: "error_active") -> Callable:
+    """What follows every monitor cycle: the recorder takes the bus's frames (within its
+    budget on a real bus) and every tenth cycle shows a status line."""
+    count = [0]
+
+    def after_cycle(rec) -> None:
+        recorder.drain(RECORDER_BUDGET_S)
+        if show is not None and count[0] % 10 == 0:
+            show(status_line(rec, player, bus_state()))
+        count[0] += 1
+
+    return after_cycle
+
+
 def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: Optional[Callable[[str], None]] = None,
-                plot: bool = True) -> RunResult:
-    """Monitor + player + recorder on the in-process virtual bus, simulated clock."""
+                plot: bool = True, duration_s: Optional[float] = None) -> RunResult:
+    """Monitor + player + recorder on the in-process virtual bus, simulated clock; with
+    `duration_s`, the run ends after that much monitor time even if the scenario has not."""
+    out_dir.mkdir(parents=True, exist_ok=True)     # before any bus is opened: a bad --out is one error, no bus left open
     with StopOnSignal() as stop:
-        return _run_virtual(setup, scenario, out_dir, show, plot, stop)
+        return _run_virtual(setup, scenario, out_dir, show, plot, stop, duration_s)
 
 
-def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event) -> RunResult:
+def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, duration_s=None) -> RunResult:
     clock = SimClock()
     period = setup.config.period_ms
     buses = [can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False) for _ in range(3)]
@@ -245,21 +264,17 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event) ->
     log_path = out_dir / f"run-{scenario.name}.log"
     recorder = Recorder(rec_bus, log_path, clock)
     try:
-        runner = MonitorRunner(mon_bus, setup, clock)
         player = Player(player_bus, scenario, period)
-        tick = 0
+        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player))
         limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
-        for i in range(limit):
+        if duration_s is not None:
+            limit = min(limit, max(1, round(duration_s * 1000 / period)))
+
+        def player_moves(tick: int) -> None:      # simulated time: the player acts at the tick, then the monitor
             clock.sleep_until_ms(tick)
             player.step(tick)
-            runner.drain()
-            rec = runner.cycle()
-            recorder.drain()
-            if show is not None and i % 10 == 0:
-                show(status_line(rec, player))
-            if player.finished or stop.is_set():
-                break
-            tick += period
+
+        runner.run(limit, stop=lambda: stop.is_set() or player.finished, before_cycle=player_moves)
         runner.send_final_emergency()
         recorder.close()
     finally:
@@ -275,6 +290,7 @@ def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: 
     """The monitor in real time on a real bus; with a scenario, the player runs in a thread
     on its own bus connection. SIGINT/SIGTERM end the run: one last emergency demand, the
     summary, exit 0."""
+    out_dir.mkdir(parents=True, exist_ok=True)     # before any bus is opened
     with StopOnSignal() as stop:
         return _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop)
 
@@ -299,12 +315,8 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
             player_thread = threading.Thread(target=play_loop, args=(player, clock, stop), daemon=True)
             player_thread.start()
 
-        def after_cycle(rec) -> None:
-            recorder.drain(RECORDER_BUDGET_S)
-            if show is not None and len(runner.records) % 10 == 0:
-                show(status_line(rec, player, runner.monitor.tally.bus_state))
-
-        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=after_cycle)
+        runner = MonitorRunner(mon_bus, setup, clock,
+                               on_cycle=reporter(recorder, show, player, lambda: runner.monitor.tally.bus_state))
         cycles = None if duration_s is None else int(duration_s * 1000 / period)
         runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished))
         stop.set()

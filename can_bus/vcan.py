@@ -8,7 +8,7 @@ its exit code and output. It always cleans up: the kernel's process group is kil
 timeout and the temporary folder is removed.
 
     python -m can_bus.vcan -- candump -n 1 vcan0
-    python -m can_bus.vcan --timeout 120 -- python -m monitor.cli run --interface socketcan --channel vcan0
+    python -m can_bus.vcan --timeout 120 -- python -m railguard run --interface socketcan --channel vcan0
 
 On a Linux machine with the vcan module, use `ip link add dev vcan0 type vcan && ip link set up vcan0`
 instead.

@@ -328,9 +328,9 @@ def write_csv(result: CosimResult, path: Path) -> Path:
 
 
 def speed_distance(result: CosimResult):
-    """The run's speed-distance picture (can_bus.plot.SpeedDistance): the curves for its
+    """The run's speed-distance picture (monitor.plot.SpeedDistance): the curves for its
     obstacle under the monitor's configuration and the train's reported conditions."""
-    from can_bus.plot import SpeedDistance
+    from monitor.plot import SpeedDistance
 
     from .reference import config_from_parameters
 
@@ -350,7 +350,7 @@ def speed_distance(result: CosimResult):
 
 
 def plot(result: CosimResult, path: Path, title: str) -> Path:
-    from can_bus.plot import plot_run
+    from monitor.plot import plot_run
 
     c = {name: i for i, name in enumerate(result.columns)}
     t = [r[0] for r in result.rows]

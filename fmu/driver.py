@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+import sys
+import zipfile
 from pathlib import Path
+
+from fmpy import calloc, free
 
 from .variables import CHANNELS, MONITOR, MONITOR_OUTPUTS
 
@@ -67,11 +71,59 @@ class Port:
                 self.values[i] = bool(other.values[i])
 
 
+LOG_LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+
+
+def _log_to_stderr(instance: str):
+    """An FMU log callback that writes to stderr (FMPy's default prints on stdout, which
+    would corrupt a command's --json output)."""
+    def log(status: int, message) -> None:
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        label = LOG_LABELS[status] if 0 <= status < len(LOG_LABELS) else str(status)
+        print(f"[{label}] {instance}: {text}", file=sys.stderr, flush=True)
+
+    return log
+
+
+def _fmi2_callbacks(instance: str):
+    from ctypes import byref
+
+    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                           fmi2CallbackLoggerTYPE)
+    from fmpy.logging import addLoggerProxy
+
+    log = _log_to_stderr(instance)
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda component, name, status, category, message: log(status, message))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    addLoggerProxy(byref(callbacks))
+    return callbacks
+
+
+def check_fmu_file(path: str | Path) -> None:
+    """A readable .fmu (a zip archive), or one line naming the file."""
+    p = Path(path)
+    if not p.is_file():
+        raise FmuFileError(f"{p}: no such FMU file")
+    if not zipfile.is_zipfile(p):
+        raise FmuFileError(f"{p}: not an FMU (an FMU is a zip archive with a modelDescription.xml)")
+
+
+class FmuFileError(ValueError):
+    """A file given as an FMU that is not one; the message names it."""
+
+
 def open_slave(path: str | Path, name: str):
-    """(slave, fmi version, unzip dir) of an instantiated FMU; the caller frees it with close_slave."""
+    """(slave, fmi version, unzip dir) of an instantiated FMU; the caller frees it with
+    close_slave. The FMU's log messages go to stderr."""
     from fmpy import extract, read_model_description
 
-    md = read_model_description(str(path))
+    check_fmu_file(path)
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:  # noqa: BLE001 - FMPy raises many kinds for a broken archive
+        raise FmuFileError(f"{path}: not a readable FMU: {str(exc).strip() or type(exc).__name__}") from None
     fmi = 3 if md.fmiVersion.startswith("3") else 2
     unzip = extract(str(path))
     kwargs = dict(unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
@@ -79,11 +131,13 @@ def open_slave(path: str | Path, name: str):
         from fmpy.fmi2 import FMU2Slave
 
         slave = FMU2Slave(guid=md.guid, **kwargs)
+        slave.instantiate(callbacks=_fmi2_callbacks(name))
     else:
         from fmpy.fmi3 import FMU3Slave
 
         slave = FMU3Slave(guid=md.instantiationToken, **kwargs)
-    slave.instantiate()
+        log = _log_to_stderr(name)
+        slave.instantiate(logMessage=lambda env, status, category, message: log(status, message))
     return slave, fmi, unzip
 
 

@@ -1,47 +1,33 @@
-"""Co-simulation scenarios: TOML files that set the train FMU's and the monitor FMU's
-parameters, the policy table and the duration (several ship in fmu/scenarios).
+"""Co-simulation scenarios: the one scenario language (monitor/scenario.py,
+docs/scenarios.md) adapted to the train FMU's and the monitor FMU's parameters.
 
-    description = "static obstacle 600 m ahead at 20 m/s"
-    duration_s = 60.0
-    table = "m1"                 # shipped m1 / m2, or a table file path
-    demand_delay_cycles = 1      # the demand reaches the train this many monitor cycles late
-    [train]                      # train FMU parameters; sections become dotted names
-    initial_speed = 20.0
-    [train.obstacle]
-    position = 600.0             # -> "obstacle.position"
-    [monitor]                    # monitor FMU parameters (names of monitor/core/config.py)
-    topology = 3
-    [braking]                    # the train's braking declaration (monitor/declaration.py, SI)
-    emergency_decel = 2.4        # ... every key; it sets the monitor's parameters
-
-Every name is checked against the FMUs' variables; an unknown one is refused. A braking
-declaration is checked as `railguard ... --braking FILE` checks it, and its values become
-monitor parameters (a [monitor] key may not set the same one again).
+A `monitor.scenario.Scenario` becomes a `CosimScenario`: its [train], its one obstacle, its
+[sensors] and its one fault become the train FMU's parameters (every dynamics parameter is
+set, so a scenario is the same world whatever the FMU's own defaults; channel c is the FMU's
+ch{c+1}); its [monitor] and [braking] become the monitor FMU's parameters; its table (the default
+table, m2, when it names none) and demand_delay_cycles are kept. What the train FMU cannot play (more than one
+obstacle or fault, an obstacle appearing late, the bus's frame faults) is refused in one
+line naming the file and the key.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from importlib import resources
-from pathlib import Path
 
+from monitor import scenario as _ground
 from monitor.core.config import Config
 from monitor.declaration import DeclarationError, apply, fields
+from monitor.tables import DEFAULT as DEFAULT_TABLE
 
-from .variables import MONITOR, TRAIN
+from .variables import MONITOR, TOPOLOGY_CODES, TRAIN
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
-
-DEFAULT = "static-obstacle"
+DEFAULT = "static-600m-20"       # `railguard cosim` without a scenario (its default before the one language)
 FAULT_KINDS = ("none", "silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance", "contradiction",
                "blind")
 _TRAIN_PARAMS = {v.name: v for v in TRAIN if v.causality == "parameter"}
 _MONITOR_PARAMS = {v.name: v for v in MONITOR if v.causality == "parameter"}
 
 
-class CosimScenarioError(ValueError):
+class CosimScenarioError(_ground.ScenarioError):
     """A scenario that cannot be run; the message names the key and says why."""
 
 
@@ -50,73 +36,63 @@ class CosimScenario:
     name: str
     description: str = ""
     duration_s: float = 60.0
-    table: str = "m1"
+    table: str = DEFAULT_TABLE
     train: dict = field(default_factory=dict)
     monitor: dict = field(default_factory=dict)
     demand_delay_cycles: int = 1
     braking: dict | None = None      # the declaration as written (SI), if the scenario has one
+    world: _ground.Scenario | None = None   # the scenario it was adapted from (its own table: world.table)
 
 
-def _flatten(prefix: str, table: dict) -> dict:
-    out = {}
-    for key, value in table.items():
-        name = f"{prefix}.{key}" if prefix else key
-        if isinstance(value, dict):
-            out.update(_flatten(name, value))
-        else:
-            out[name] = value
-    return out
+def train_parameters(scen: _ground.Scenario) -> dict:
+    """The train FMU's parameters for a scenario cosim can play (every one it plays)."""
+    tr = scen.train
+    bands = list(tr.emergency_decel_mps2) + [(0.0, 0.0)] * (3 - len(tr.emergency_decel_mps2))
+    p = {name: float(getattr(tr, key)) for key, name in _ground.FMU_TRAIN_NAMES.items() if key != "emergency_decel_mps2"}
+    p.update({"emergency_decel": bands[0][1], "emergency_band2_speed": bands[1][0], "emergency_band2_decel": bands[1][1],
+              "emergency_band3_speed": bands[2][0], "emergency_band3_decel": bands[2][1],
+              "track_condition": _ground.TRACKS.index(tr.track), "brake_status": _ground.BRAKES.index(tr.brake)})
+    p["obstacle.present"] = bool(scen.obstacles)
+    if scen.obstacles:
+        o = scen.obstacles[0]
+        p.update({"obstacle.position": o.position_m, "obstacle.speed": o.speed_mps,
+                  "obstacle.type": _ground.OBSTACLE_TYPES.index(o.type)})
+    s = scen.sensors
+    p.update({"sensor.range": s.range_m, "sensor.noise_sigma": s.noise_sigma_m,
+              "sensor.miss_probability": s.miss_probability, "sensor.seed": s.seed})
+    p["fault.kind"] = 0
+    if scen.faults:
+        f = scen.faults[0]
+        p.update({"fault.kind": FAULT_KINDS.index(f.kind), "fault.channel": f.channel + 1, "fault.start": f.start_s,
+                  "fault.end": f.end_s})
+    unknown = set(p) - set(_TRAIN_PARAMS)
+    assert not unknown, f"not train FMU parameters: {unknown}"
+    return p
 
 
-def _check_params(section: str, values: dict, known: dict) -> dict:
-    checked = {}
-    for name, value in values.items():
-        var = known.get(name)
-        if var is None:
-            raise CosimScenarioError(f"[{section}] {name}: unknown parameter; known: {', '.join(sorted(known))}")
-        if name == "fault.kind" and isinstance(value, str):
-            if value not in FAULT_KINDS:
-                raise CosimScenarioError(f"[{section}] fault.kind = {value!r}: known kinds: {', '.join(FAULT_KINDS)}")
-            value = FAULT_KINDS.index(value)
-        if var.type == "Real" and not isinstance(value, bool) and isinstance(value, (int, float)):
-            value = float(value)
-        elif var.type == "Integer" and not isinstance(value, bool) and isinstance(value, int):
-            pass
-        elif var.type == "Boolean" and isinstance(value, bool):
-            pass
-        else:
-            raise CosimScenarioError(f"[{section}] {name} = {value!r}: must be a {var.type.lower()}")
-        checked[name] = value
-    return checked
+def adapt(scen: _ground.Scenario) -> CosimScenario:
+    """The CosimScenario of a scenario, or CosimScenarioError if cosim cannot play it."""
+    _ground.require(scen, "cosim", CosimScenarioError)
+    try:
+        params = _ground.monitor_parameters(scen)
+    except _ground.ScenarioError as exc:
+        raise CosimScenarioError(str(exc)) from None
+    monitor = {k: TOPOLOGY_CODES[v] if k == "topology" else v for k, v in params.items()}
+    unknown = set(monitor) - set(_MONITOR_PARAMS)
+    assert not unknown, f"not monitor FMU parameters: {unknown}"
+    return CosimScenario(scen.name, scen.description, scen.duration_s, scen.table or DEFAULT_TABLE, train_parameters(scen),
+                         monitor, scen.demand_delay_cycles, dict(scen.braking) if scen.braking is not None else None,
+                         scen)
 
 
 def parse(text: str, name: str) -> CosimScenario:
+    """A CosimScenario from the TOML text of a scenario."""
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise CosimScenarioError(f"{name}: not valid TOML: {exc}") from None
-    known = {"description", "duration_s", "table", "demand_delay_cycles", "train", "monitor", "braking"}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise CosimScenarioError(f"{name}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
-    duration = data.get("duration_s", 60.0)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not 0.1 <= duration <= 86400:
-        raise CosimScenarioError(f"{name}: duration_s = {duration!r}: must be 0.1..86400 s")
-    table = data.get("table", "m1")
-    if not isinstance(table, str):
-        raise CosimScenarioError(f"{name}: table = {table!r}: must be m1, m2 or a table file path")
-    delay = data.get("demand_delay_cycles", 1)
-    if isinstance(delay, bool) or not isinstance(delay, int) or not 0 <= delay <= 50:
-        raise CosimScenarioError(f"{name}: demand_delay_cycles = {delay!r}: must be a whole number 0..50")
-    train = _check_params("train", _flatten("", data.get("train", {})), _TRAIN_PARAMS)
-    monitor = _check_params("monitor", _flatten("", data.get("monitor", {})), _MONITOR_PARAMS)
-    scen = CosimScenario(name, str(data.get("description", "")), float(duration), table, train, monitor, delay)
-    braking = data.get("braking")
-    if braking is None:
-        return scen
-    if not isinstance(braking, dict):
-        raise CosimScenarioError(f"{name}: [braking] must be a table of the declaration's keys")
-    return with_braking(scen, braking, f"{name}: [braking]")
+        return adapt(_ground.loads(text, name))
+    except CosimScenarioError:
+        raise
+    except _ground.ScenarioError as exc:
+        raise CosimScenarioError(str(exc)) from None
 
 
 def with_braking(scen: CosimScenario, values: dict, where: str) -> CosimScenario:
@@ -137,15 +113,15 @@ def with_braking(scen: CosimScenario, values: dict, where: str) -> CosimScenario
 
 
 def shipped() -> list[str]:
-    return sorted(p.name[:-5] for p in resources.files("fmu.scenarios").iterdir() if p.name.endswith(".toml"))
+    """The shipped scenarios (monitor/scenarios) cosim can play."""
+    return [name for name, _, players in _ground.catalogue() if "cosim" in players]
 
 
 def load(spec: str | None) -> CosimScenario:
-    """A shipped scenario by name, or a TOML file by path."""
-    spec = spec or DEFAULT
-    if spec in shipped():
-        return parse(resources.files("fmu.scenarios").joinpath(f"{spec}.toml").read_text(), spec)
-    path = Path(spec)
-    if not path.is_file():
-        raise CosimScenarioError(f"{spec}: no such scenario file; shipped scenarios: {', '.join(shipped())}")
-    return parse(path.read_text(), path.stem)
+    """A shipped scenario by name (None: DEFAULT), or a TOML file by path."""
+    try:
+        return adapt(_ground.load(spec or DEFAULT))
+    except CosimScenarioError:
+        raise
+    except _ground.ScenarioError as exc:
+        raise CosimScenarioError(str(exc)) from None

@@ -1,4 +1,4 @@
-"""The fault-injection campaign (verification/campaign.py): the quick campaign passes, and
+"""The fault-injection campaign (verification/campaign/): the quick campaign passes, and
 its checkers can fail: a planted unsafe monitor is reported unsafe, the old nominal envelope
 collides in the campaign's world (which brakes only as the declaration guarantees), a
 monitor blind to a fault is reported undetected, a monitor that brakes for a ghost fails the

@@ -3,7 +3,7 @@
 One sandbox boot (can_bus.vcan, DESIGN.md section 7) runs tests/vcan_flood.sh: canplayer
 replays valid input traffic (six clear channels and TrainState at 10 Hz) so that the monitor
 has a calm baseline with no demand; candump records the frames with ID 010 and a heartbeat
-(kernel filters); the monitor runs (`python -m monitor.cli run ... --duration D --json`,
+(kernel filters); the monitor runs (`python -m railguard run ... --duration D --json`,
 ended by SIGTERM); after the calm start cangen floods the bus, a few seconds each:
 
 1. `random`: random IDs, lengths and data;

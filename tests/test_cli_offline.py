@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, TIGER_PATH
-from monitor.cli import main
+from railguard.main import main
 from monitor.core.table import decode
 from monitor.offline.pomdp_file import read
 
@@ -207,7 +207,7 @@ def test_error_messages_name_the_problem(capsys, tmp_path):
                                   "solver-not-a-table"])
 def test_user_errors_in_a_subprocess_have_no_traceback(tmp_path, case):
     argv = [str(a) for a in ERROR_CASES[case](tmp_path)]
-    proc = subprocess.run([sys.executable, "-m", "monitor.cli", *argv], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-m", "railguard", *argv], capture_output=True, text=True,
                           cwd=ROOT, timeout=120)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr
@@ -217,13 +217,13 @@ def test_user_errors_in_a_subprocess_have_no_traceback(tmp_path, case):
 
 
 def test_subprocess_solve_and_show(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "monitor.cli", "solve", "--pomdp", str(TIGER_PATH), "--json",
+    proc = subprocess.run([sys.executable, "-m", "railguard", "solve", "--pomdp", str(TIGER_PATH), "--json",
                            "--out", str(tmp_path)], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     obj = one_json_object(proc.stdout)
     assert obj["controller_value"] == pytest.approx(19.37, abs=0.01)
-    proc = subprocess.run([sys.executable, "-m", "monitor.cli", "table", "show", obj["table"]],
+    proc = subprocess.run([sys.executable, "-m", "railguard", "table", "show", obj["table"]],
                           capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 0 and "Traceback" not in proc.stderr
     assert "listen" in proc.stdout

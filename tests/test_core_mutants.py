@@ -1,6 +1,6 @@
 """Deterministic tests on the core's behaviour at its exact boundaries (issue 14, item 5).
 
-Mutation testing (`verification/mutation.py`) found behaviours of `monitor/core` that the
+Mutation testing (`verification/mutation/`) found behaviours of `monitor/core` that the
 example-based, property-based and stateful tests let change unnoticed: a flag raised by one
 module alone, the direction of a 2oo2 disagreement, the exact distance tolerance, exactly
 alpha2, obstacle code 3, the status taken as min instead of max, non-int fields taken as

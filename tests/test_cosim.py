@@ -17,7 +17,7 @@ from fmu import cosim, scenario
 from fmu.scenario import CosimScenarioError
 from monitor.core.types import R_DISPUTE
 
-OBSTACLE_SCENARIOS = ["static-obstacle", "late-obstacle", "moving-obstacle", "oncoming-obstacle"]
+OBSTACLE_SCENARIOS = ["static-600m-20", "late-obstacle", "train-ahead-500m-25", "oncoming-obstacle"]
 FAULT_SCENARIOS = [s for s in scenario.shipped() if s.startswith("fault-")]
 
 
@@ -37,7 +37,7 @@ def test_every_fault_kind_has_a_shipped_scenario():
     assert kinds == set(range(1, 8))
 
 
-@pytest.mark.parametrize("name", ["static-obstacle", "late-obstacle"])
+@pytest.mark.parametrize("name", ["static-600m-20", "late-obstacle"])
 @pytest.mark.parametrize("table", ["m1", "m2"])
 def test_train_stops_before_a_static_obstacle(name, table, monitor_fmus, train_fmu):
     scen, res = run(name, monitor_fmus, train_fmu, table)
@@ -67,7 +67,7 @@ def test_late_obstacle_is_seen_between_ebi_and_sbi(monitor_fmus, train_fmu):
 
 
 def test_moving_obstacle_is_never_hit(monitor_fmus, train_fmu):
-    _, res = run("moving-obstacle", monitor_fmus, train_fmu)
+    _, res = run("train-ahead-500m-25", monitor_fmus, train_fmu)
     assert res.outcome in ("stopped", "running")
     assert min(column(res, "true_distance")) > 0
     assert res.max_demand >= 1
@@ -151,7 +151,7 @@ def test_a_scenario_braking_declaration_becomes_monitor_parameters(tmp_path):
 def test_the_speed_distance_picture_follows_the_run(monitor_fmus, train_fmu):
     """The diagram's trajectory is the run's (true speed against true distance), its
     curves are the monitor's for the scenario's obstacle and conditions."""
-    from can_bus.plot import curve_points
+    from monitor.plot import curve_points
 
     _, res = run("oncoming-obstacle", monitor_fmus, train_fmu)
     sd = cosim.speed_distance(res)
@@ -192,11 +192,11 @@ def test_scenario_errors_name_the_key(tmp_path):
     bad.write_text('[train]\nwheels = 4\n')
     with pytest.raises(CosimScenarioError, match="wheels"):
         scenario.load(str(bad))
-    bad.write_text('[train.fault]\nkind = "gremlins"\n')
+    bad.write_text('[[faults]]\nkind = "gremlins"\nchannel = 2\nstart_s = 1.0\n')
     with pytest.raises(CosimScenarioError, match="gremlins"):
         scenario.load(str(bad))
-    bad.write_text('[train]\ninitial_speed = "fast"\n')
-    with pytest.raises(CosimScenarioError, match="initial_speed"):
+    bad.write_text('[train]\nspeed_mps = "fast"\n')
+    with pytest.raises(CosimScenarioError, match="speed_mps"):
         scenario.load(str(bad))
     with pytest.raises(CosimScenarioError, match="no such scenario"):
         scenario.load("no-such-thing")
@@ -207,7 +207,7 @@ def test_ssp_of_the_closed_loop_runs_in_fmpy(tmp_path, monitor_fmus, train_fmu):
 
     from fmu import ssp
 
-    scen = scenario.load("static-obstacle")
+    scen = scenario.load("static-600m-20")
     path = ssp.write(tmp_path / "loop.ssp", train_fmu, monitor_fmus[("m1", 2)], scen.train, scen.monitor, scen.duration_s)
     read_ssd(str(path), validate=True)          # against the SSP 1.0 schema
     res = ssp.simulate(path)
@@ -220,7 +220,7 @@ def test_ssp_of_the_closed_loop_runs_in_fmpy(tmp_path, monitor_fmus, train_fmu):
 
 
 def cli(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "monitor.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "railguard", *args], capture_output=True, text=True, cwd=cwd)
 
 
 def test_cosim_command_json_csv_and_plot(tmp_path, monitor_fmus, train_fmu):
@@ -244,15 +244,15 @@ def test_build_fmu_command_prints_the_path(tmp_path):
     res = cli("build-fmu", "--fmi", "3", "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
     path = Path(res.stdout.strip())
-    assert path.is_file() and path.name == "railguard-monitor-m1-fmi3.fmu"
+    assert path.is_file() and path.name == "railguard-monitor-m2-fmi3.fmu"     # the one default table
     res = cli("build-fmu", "--ssp", "no-obstacle", "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
-    assert Path(res.stdout.strip()).name == "railguard-no-obstacle.ssp"
+    assert Path(res.stdout.splitlines()[-1]).name == "railguard-no-obstacle.ssp"
 
 
 def test_commands_fail_in_one_line(tmp_path):
     for args in (["build-fmu", "--model", str(tmp_path / "missing.rgt")], ["cosim", "no-such-scenario"],
-                 ["cosim", "--step", "0.03", "--out", str(tmp_path)]):
+                 ["cosim", "--step", "0", "--out", str(tmp_path)]):
         res = cli(*args)
         assert res.returncode == 2, (args, res.stderr)
         assert res.stderr.startswith("railguard: error: ") and res.stderr.count("\n") == 1, res.stderr

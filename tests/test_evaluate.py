@@ -22,7 +22,7 @@ ENV = {**os.environ, "MPLBACKEND": "Agg"}
 
 
 def railguard(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "monitor.cli", *args], capture_output=True, text=True, cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "railguard", *args], capture_output=True, text=True, cwd=ROOT,
                           env=ENV, timeout=timeout)
 
 
@@ -279,7 +279,7 @@ def test_m2_table_brakes_once_in_the_default_scenario(tmp_path):
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     assert d["table"] == "m2" and d["outcome"] == "stopped" and d["demand_changes"] <= 3, d
-    text = (ROOT / "can_bus" / "scenarios" / "static-obstacle.toml").read_text(encoding="utf-8")
+    text = (ROOT / "monitor" / "scenarios" / "static-obstacle.toml").read_text(encoding="utf-8")
     assert "[[faults]]" in text
     calm = tmp_path / "static-obstacle-no-fault.toml"
     calm.write_text(text[:text.index("[[faults]]")], encoding="utf-8")

@@ -1,4 +1,4 @@
-"""Mutation testing of the safety core in CI (issue 14, item 5): `verification/mutation.py`.
+"""Mutation testing of the safety core in CI (issue 14, item 5): `verification/mutation/`.
 
 The CI job runs the tool on voter.py, freshness.py, observation.py and envelope.py (the
 2oo2/3oo3 voters, freshness and range checks, the observation symbols, the zones, the

@@ -42,7 +42,7 @@ def test_runs_digest_is_the_same_for_one_and_two_workers():
 
 
 def _railguard(*args, timeout=600):
-    return subprocess.run([sys.executable, "-m", "monitor.cli", *args], capture_output=True, text=True, timeout=timeout)
+    return subprocess.run([sys.executable, "-m", "railguard", *args], capture_output=True, text=True, timeout=timeout)
 
 
 def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):

@@ -1,4 +1,4 @@
-"""Adaptive stress testing (verification/stress.py, `railguard stress`): the disturbance
+"""Adaptive stress testing (verification/stress/, `railguard stress`): the disturbance
 model's likelihoods, the boundary of blindness the supervision survives at the EBI edge, the
 failure the search found (a blackout during emergency braking releases the revocable
 emergency) kept as a regression test, its candump log replayed by `railguard replay`, the
@@ -98,7 +98,7 @@ def test_importance_sampling_with_the_nominal_proposal_is_naive_monte_carlo():
 
 
 def test_railguard_stress_quick_finds_a_failure_that_replays(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "monitor.cli", "stress", "--table", "m2", "--quick", "--json",
+    res = subprocess.run([sys.executable, "-m", "railguard", "stress", "--table", "m2", "--quick", "--json",
                           "--workers", "2", "--out", str(tmp_path)], capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
     out = json.loads(res.stdout)

@@ -99,7 +99,7 @@ def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
 
 def test_verify_quick_passes_with_report_and_json(tmp_path):
     """The command CI relies on: every part, quick mode, all checks pass."""
-    res = subprocess.run([sys.executable, "-m", "monitor.cli", "verify", "--quick", "--json", "--out", str(tmp_path)],
+    res = subprocess.run([sys.executable, "-m", "railguard", "verify", "--quick", "--json", "--out", str(tmp_path)],
                          capture_output=True, text=True)
     data = json.loads(res.stdout)
     failed = [c for c in data["checks"] if not c["passed"]]

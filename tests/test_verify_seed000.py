@@ -1,4 +1,4 @@
-"""verification/seed000.py: the seed 000 simulation run through the monitor core."""
+"""verification/seed000/: the seed 000 simulation run through the monitor core."""
 from __future__ import annotations
 
 import math

@@ -52,6 +52,24 @@ QUIET_WORKERS = {"distributed.worker.profile.enabled": False, "distributed.admin
 
 
 @contextmanager
+def _workers_ignore_ctrl_c() -> Iterator:
+    """Worker processes started in here ignore SIGINT (the disposition survives their exec):
+    Ctrl-C at the terminal reaches the whole process group, and only this process should
+    act on it (cancel the work, one line, exit 130), not every worker with a traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def client(cluster: Cluster) -> Iterator:
     """A dask.distributed Client for `cluster` (a LocalCluster started and stopped here)."""
     from distributed import Client, LocalCluster
@@ -68,7 +86,7 @@ def client(cluster: Cluster) -> Iterator:
         return
     import dask
 
-    with dask.config.set(QUIET_WORKERS):
+    with dask.config.set(QUIET_WORKERS), _workers_ignore_ctrl_c():
         local = LocalCluster(n_workers=cluster.size(), threads_per_worker=1, processes=True, dashboard_address=":0",
                              silence_logs=logging.CRITICAL)
     c = Client(local)

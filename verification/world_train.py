@@ -301,8 +301,24 @@ LIMITS = {"service_decel": (0.0, 20.0), "brake_delay": (0.0, 5.0), "brake_buildu
           "davis_c": (0.0, 1e5), "sensor_latency_s": (0.0, 5.0), "output_latency_s": (0.0, 5.0)}
 
 
+def _scenario_names() -> dict:
+    """The [train] keys of the one scenario language (monitor/scenario.py) that name a field
+    here: a [world_train] table may use them (a scenario's [train] dynamics, pasted)."""
+    from monitor.scenario import FMU_TRAIN_NAMES
+
+    own = {f.name for f in fields(WorldTrain)}
+    return {key: name for key, name in FMU_TRAIN_NAMES.items() if name in own and key != name}
+
+
 def from_mapping(values: dict, where: str) -> WorldTrain:
-    """A WorldTrain from a mapping of its field names (missing ones keep the defaults)."""
+    """A WorldTrain from a mapping of its field names, or of the scenario language's [train]
+    names for them (brake_delay_s for brake_delay, ...); missing ones keep the defaults."""
+    aliases = _scenario_names()
+    both = sorted(k for k in values if k in aliases and aliases[k] in values)
+    if both:
+        raise WorldTrainError(f"{where}: {', '.join(both)} and {', '.join(aliases[k] for k in both)} name the same "
+                              "value; keep one")
+    values = {aliases.get(k, k): v for k, v in values.items()}
     unknown = sorted(set(values) - set(NUMBER_KEYS) - {"emergency_decel"})
     if unknown:
         raise WorldTrainError(f"{where}: unknown key(s) {', '.join(unknown)}; known: emergency_decel, "

@@ -5,6 +5,7 @@ from importlib import resources
 from pathlib import Path
 
 SHIPPED = ("m1", "m2")
+DEFAULT = "m2"        # the one default table of every command (Model 2: seed 001, 144 states)
 
 
 class TableNotFound(OSError):

@@ -61,7 +61,7 @@ typedef struct {
     double start_time;
     int stop_time_defined;
     double stop_time;
-    uint64_t steps; /* FIXED_STEPs done: time = start_time + steps * FIXED_STEP, no drift */
+    int64_t time_ns; /* FMU time - start_time in whole ns (rg_fmi_shared.h): no drift */
     ModelData data;
     char model_msg[256];
     char text[TEXT_SIZE];
@@ -172,7 +172,7 @@ static fmi2Status unsupported(fmi2Component c, const char *fn)
 
 static double now(const Instance *inst)
 {
-    return inst->start_time + (double)inst->steps * FIXED_STEP;
+    return rg_time_of(inst->start_time, inst->time_ns);
 }
 
 /* Check every value reference before touching anything, so that a refused call has no
@@ -214,7 +214,7 @@ static void reset_instance(Instance *inst)
     inst->start_time = 0.0;
     inst->stop_time_defined = 0;
     inst->stop_time = 0.0;
-    inst->steps = 0;
+    inst->time_ns = 0;
     inst->state = S_INSTANTIATED;
 }
 
@@ -646,7 +646,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
 {
     Instance *inst = begin(c, "fmi2DoStep", S_STEP_COMPLETE);
     double t, h = communicationStepSize, end;
-    uint64_t n;
+    int64_t end_ns;
+    const char *why;
     (void)noSetFMUStatePriorToCurrentPoint; /* no FMU states are kept */
     if (!inst)
         return fmi2Error;
@@ -654,23 +655,23 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     if (!rg_at_time(currentCommunicationPoint, t))
         return fail(inst, "fmi2DoStep: currentCommunicationPoint %.17g differs from the FMU time %.17g",
                     currentCommunicationPoint, t);
-    n = rg_fixed_steps(h);
-    if (n == 0)
-        return fail(inst, "fmi2DoStep: communicationStepSize %.17g is not a positive whole multiple of the fixed step %g",
-                    h, FIXED_STEP);
-    if (n > UINT64_MAX - inst->steps)
-        return fail(inst, "fmi2DoStep: step count overflow");
-    end = inst->start_time + (double)(inst->steps + n) * FIXED_STEP;
+    why = rg_bad_step(h);
+    if (why)
+        return fail(inst, "fmi2DoStep: communicationStepSize %.17g %s", h, why);
+    end_ns = rg_step_end_ns(inst->start_time, inst->time_ns, currentCommunicationPoint, h);
+    if (end_ns < 0)
+        return fail(inst, "fmi2DoStep: communicationStepSize %.17g: the step ends beyond the FMU's time range (2^62 ns)", h);
+    end = rg_time_of(inst->start_time, end_ns);
     if (inst->stop_time_defined && end > inst->stop_time + 1e-9 * rg_fmax(1.0, rg_fabs(inst->stop_time)))
         return fail(inst, "fmi2DoStep: step to %.17g goes past stopTime %.17g", end, inst->stop_time);
     inst->model_msg[0] = '\0';
-    if (model_do_step(&inst->data, t, (double)n * FIXED_STEP, inst->model_msg, sizeof inst->model_msg) != RG_OK) {
+    if (model_do_step(&inst->data, inst->time_ns, end_ns, inst->model_msg, sizeof inst->model_msg) != RG_OK) {
         inst->model_msg[sizeof inst->model_msg - 1] = '\0';
         return fail(inst, "fmi2DoStep: at t = %.17g: %s", t,
                     inst->model_msg[0] ? inst->model_msg : "model step failed");
     }
-    inst->steps += n;
-    trace(inst, "fmi2DoStep: t = %g, h = %g (%llu fixed steps)", t, h, (unsigned long long)n);
+    inst->time_ns = end_ns;
+    trace(inst, "fmi2DoStep: t = %g, h = %g (to %lld ns after the start)", t, h, (long long)end_ns);
     return fmi2OK;
 }
 

@@ -2,7 +2,8 @@
  * (monitor/model.c or train/model.c).
  *
  * Each model folder has a config.h that defines MODEL_IDENTIFIER, INSTANTIATION_TOKEN,
- * FIXED_STEP (seconds; a communication step must be a whole multiple of it) and the
+ * FIXED_STEP (seconds: the monitor's cycle, the train's internal step; any communication
+ * step is accepted, the model decides what it does between its fixed instants) and the
  * struct ModelData (plain data, no pointers to heap memory). The build also generates
  * variables.h in the model's folder: the value references (an enum in XML order) and
  * the table VARIABLES[] of (value reference, type, causality, variability) that the
@@ -43,9 +44,11 @@ void model_set_start_values(ModelData *m);
  * On RG_ERROR, `msg` (of `len` bytes) says what is wrong, naming the variable. */
 int model_initialize(ModelData *m, char *msg, size_t len);
 
-/* Advance from `time` by `h` seconds (a whole multiple of FIXED_STEP, checked by the
- * wrapper). On RG_ERROR, `msg` says why. */
-int model_do_step(ModelData *m, double time, double h, char *msg, size_t len);
+/* Advance from `from_ns` to `to_ns`, both in whole nanoseconds since the start of the run
+ * (0 <= from_ns <= to_ns; from_ns is where the previous step ended, or 0). The wrapper keeps
+ * that time and rounds each step end to the nanosecond (rg_fmi_shared.h). On RG_ERROR,
+ * `msg` says why. */
+int model_do_step(ModelData *m, int64_t from_ns, int64_t to_ns, char *msg, size_t len);
 
 /* Get / set by value reference. The wrapper has already checked that `vr` exists in
  * VARIABLES[] with this type and that setting it is allowed now. */

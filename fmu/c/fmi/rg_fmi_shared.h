@@ -1,6 +1,7 @@
 /* The checks both FMI wrappers (fmi2.c, fmi3.c) make the same way, in one place: which
- * variables may be set when, whether the generated variable table is sound, and how a
- * communication point and a step size are matched against the fixed step. The including
+ * variables may be set when, whether the generated variable table is sound, how a
+ * communication point is matched against the FMU time and where a step ends (the FMU
+ * time in whole nanoseconds). The including
  * file defines RG_FMI_EXIT_INIT, the name of its ExitInitializationMode (for messages). */
 #ifndef RG_FMI_SHARED_H
 #define RG_FMI_SHARED_H
@@ -48,16 +49,47 @@ static inline int rg_at_time(double point, double t)
     return rg_fabs(point - t) <= 1e-9 * rg_fmax(1.0, rg_fabs(t));
 }
 
-/* The model runs on a fixed step: the number n >= 1 of FIXED_STEPs in `h` (relative
- * tolerance 1e-9), or 0 if `h` is no positive whole multiple. h / FIXED_STEP < 2^53 keeps
- * n exact and the conversion defined. */
-static inline uint64_t rg_fixed_steps(double h)
+/* Time. The FMU's time is a whole number of nanoseconds since startTime (int64_t), never a
+ * sum of doubles: a 10 ms step is exactly 10,000,000 ns, so ten of them make exactly one
+ * 100 ms monitor cycle however the importer adds its own time up. RG_MAX_NS (2^62 ns, about
+ * 146 years) bounds it so that every sum and product below stays far from overflow. */
+#define RG_NS_PER_S 1e9
+#define RG_MAX_NS 4611686018427387904.0
+
+/* The FMU time in seconds: startTime + ns / 10^9 (a correctly rounded division: 3 x 100 ms
+ * is reported as 0.3, the double nearest to 0.3). */
+static inline double rg_time_of(double start, int64_t ns)
 {
-    double q = h / FIXED_STEP, rounded = rg_floor(q + 0.5);
-    if (!(h > 0.0) || !(q < 9007199254740992.0) || rounded < 1.0 ||
-        rg_fabs(h - rounded * FIXED_STEP) > 1e-9 * rg_fmax(1.0, h))
-        return 0;
-    return (uint64_t)rounded;
+    return start + (double)ns / RG_NS_PER_S;
+}
+
+/* Where a step ends, in ns since `start`: the importer's end point point + h rounded to the
+ * nearest nanosecond (halves up), never before the FMU time `now_ns` (a step shorter than
+ * the rounding then leaves the time as it is). It is measured from the importer's point,
+ * not from now_ns: a difference between the two clocks (at most the tolerance of
+ * rg_at_time) is not carried forward, as the FMI 2.0 text suggests for a slave with its own
+ * time (hc_s = (tc_i - tc_s) + hc_i). `h` is a finite positive number (checked by the
+ * caller). -1 if the end lies beyond RG_MAX_NS. */
+static inline int64_t rg_step_end_ns(double start, int64_t now_ns, double point, double h)
+{
+    double x = (point - start) * RG_NS_PER_S + h * RG_NS_PER_S;
+    int64_t end;
+    if (!(x < RG_MAX_NS))
+        return -1;
+    end = (int64_t)rg_floor(x + 0.5);
+    return end < now_ns ? now_ns : end;
+}
+
+/* Why a communicationStepSize cannot be done at all, or NULL. Both FMI 2.0 and FMI 3.0
+ * require communicationStepSize > 0.0, so zero, negative and NaN are refused; every other
+ * value is accepted (canHandleVariableCommunicationStepSize = true). */
+static inline const char *rg_bad_step(double h)
+{
+    if (!(h > 0.0))
+        return "must be > 0 (FMI: communicationStepSize > 0.0)";
+    if (!(h < RG_MAX_NS / RG_NS_PER_S))
+        return "is too long (the FMU time is limited to 2^62 ns)";
+    return NULL;
 }
 
 #endif

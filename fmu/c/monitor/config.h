@@ -12,7 +12,8 @@
 #include "rg_parameters.h"
 
 #define MODEL_IDENTIFIER "railguard_monitor"
-#define FIXED_STEP 0.1   /* the core's cycle period, 100 ms */
+#define FIXED_STEP 0.1   /* the core's cycle period, 100 ms: cycles run at its multiples, whatever the
+                           communication step (model_do_step) */
 
 typedef struct {
     /* parameters: the fields of rg_config named in RG_PARAMETERS (as in monitor/core/config.py),
@@ -30,7 +31,8 @@ typedef struct {
     rg_inputs inputs;     /* the newest report of each channel, with the tick it arrived */
     rg_state state;
     rg_outputs outputs;
-    int64_t cycles;       /* cycles run since initialisation: tick = cycles * period_ms */
+    int64_t cycles;       /* cycles run since initialisation: the next one runs at tick = cycles * period_ms,
+                             i.e. at cycles * period_ms * 10^6 ns after the start */
 } ModelData;
 
 #endif

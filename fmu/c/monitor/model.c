@@ -1,4 +1,5 @@
 /* The monitor FMU's model: FMI values in, one core cycle per 100 ms, FMI values out.
+ * Any communication step: the cycles whose instants fall in the step run (model_do_step).
  *
  * Real inputs are read into the core's integer units towards the safe side: distance
  * rounded down to dm, closing and train speed rounded up to cm/s. NaN or a value outside
@@ -119,15 +120,24 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     return RG_OK;
 }
 
-int model_do_step(ModelData *m, double time, double h, char *msg, size_t len)
+/* The monitor is a sampled controller. Cycle k runs at its tick instant k * period_ms
+ * (ns since the start: k * period_ms * 10^6, exact integers), with the inputs as they are
+ * at that instant, i.e. as set before the communication step that contains it. A step
+ * from from_ns to to_ns runs every cycle whose instant lies in [from_ns, to_ns): the
+ * instant at the start of a step belongs to that step, the one at its end to the next.
+ * At 100 ms steps this is one cycle per step, the cycle at the step's start, as always.
+ * Between cycles the outputs hold; the outputs at time t are those of the last cycle
+ * before t (INIT before the first step). */
+int model_do_step(ModelData *m, int64_t from_ns, int64_t to_ns, char *msg, size_t len)
 {
-    long n = (long)rg_floor(h / FIXED_STEP + 0.5);
-    long k;
+    const int64_t period_ns = (int64_t)m->config.period_ms * 1000000;
     int i;
-    (void)time;
-    (void)msg;
-    (void)len;
-    for (k = 0; k < n; k++) {
+    if (period_ns <= 0 || to_ns < from_ns) {
+        snprintf(msg, len, "bad step from %lld ns to %lld ns (period %lld ns)", (long long)from_ns,
+                 (long long)to_ns, (long long)period_ns);
+        return RG_ERROR;
+    }
+    while (m->cycles * period_ns < to_ns) {
         int64_t tick = m->cycles * m->config.period_ms;
         for (i = 0; i < RG_MAX_CHANNELS; i++) {
             if (m->valid[i]) {

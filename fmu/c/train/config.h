@@ -12,6 +12,7 @@
 #define MODEL_IDENTIFIER "railguard_train"
 #define INSTANTIATION_TOKEN "{8c4e810f-3df3-4a00-8276-176fa00ae0b6}"
 #define FIXED_STEP 0.01 /* s: internal integration step */
+#define TRAIN_STEP_NS INT64_C(10000000) /* the same in ns: the internal steps start at k * TRAIN_STEP_NS */
 
 #define TRAIN_CHANNELS 6
 /* longest brake dead time the demand buffer holds: 5 s in steps of FIXED_STEP */
@@ -26,6 +27,21 @@ typedef struct {
     int32_t type;         /* 0 static, 1 dynamic, 2 train */
     int valid;            /* the channel is alive (false only under the silence fault) */
 } TrainChannel;
+
+/* The outputs that change continuously, at the FMU time: on the 10 ms grid the state
+ * itself; between grid instants the state integrated from the last grid instant over
+ * the part of the internal step done so far (model.c, model_do_step). */
+typedef struct {
+    double speed;
+    double position;
+    double acceleration;
+    double true_distance;
+    double brake_decel;
+    double impact_speed;
+    int32_t brake_level;
+    int collided;
+    int valid[TRAIN_CHANNELS];
+} TrainView;
 
 typedef struct {
     /* ---- parameters ---- */
@@ -79,7 +95,11 @@ typedef struct {
     int collided;
     double impact_speed; /* m/s: our speed when the obstacle was reached (0: we stood) */
 
+    /* ---- what the getters show: the continuous outputs at the FMU time ---- */
+    TrainView view;
+
     /* ---- internal state ---- */
+    int32_t cell_demand;  /* brake_demand as it was at the start of the current internal step */
     double time;          /* s, = steps * FIXED_STEP */
     int64_t steps;        /* internal steps since t = 0 */
     int phase;            /* TRAIN_WAITING, TRAIN_RUNNING, TRAIN_STOPPED (model.c) */

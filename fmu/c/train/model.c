@@ -290,11 +290,13 @@ static double traction_acc(const ModelData *m, int demand, int level, double t, 
     return traction;
 }
 
-static void internal_step(ModelData *m)
+/* One internal step of `dt` seconds from m->time, ending at `t_end`: a whole step of the
+ * grid (dt = FIXED_STEP), or the first part of one (model_do_step's preview). The demand is
+ * the one sampled at the start of the step (cell_demand). */
+static void internal_step(ModelData *m, double dt, double t_end)
 {
-    const double dt = FIXED_STEP;
     const double t = m->time;
-    const int raw = demand_level(m->brake_demand);
+    const int raw = demand_level(m->cell_demand);
     const int previous_level = m->brake_level;
     const double d0 = m->true_distance;
     int demand, level;
@@ -314,8 +316,7 @@ static void internal_step(ModelData *m)
     m->brake_level = level;
     update_brake(m, level, previous_level, v, dt);
 
-    m->steps++;
-    m->time = (double)m->steps * dt;
+    m->time = t_end;
 
     if (m->collided) {
         m->speed = 0.0;
@@ -358,6 +359,21 @@ static void internal_step(ModelData *m)
     m->position += dx;
     m->acceleration = a;
     if (update_distance(m)) m->impact_speed = impact;
+}
+
+/* the continuous outputs of state `src` become what `m` shows */
+static void set_view(ModelData *m, const ModelData *src)
+{
+    int c;
+    m->view.speed = src->speed;
+    m->view.position = src->position;
+    m->view.acceleration = src->acceleration;
+    m->view.true_distance = src->true_distance;
+    m->view.brake_decel = src->brake_decel;
+    m->view.impact_speed = src->impact_speed;
+    m->view.brake_level = src->brake_level;
+    m->view.collided = src->collided;
+    for (c = 0; c < TRAIN_CHANNELS; c++) m->view.valid[c] = src->ch[c].valid;
 }
 
 /* ------------------------------------------------------------------ FMI-facing functions */
@@ -407,6 +423,7 @@ void model_set_start_values(ModelData *m)
     m->position = 0.0;
     m->true_distance = m->obstacle_position;
     m->phase = TRAIN_RUNNING;
+    set_view(m, m);
 }
 
 static int bad_nonneg(double x)
@@ -500,6 +517,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     /* internal state at t = 0 */
     m->time = 0.0;
     m->steps = 0;
+    m->cell_demand = 0;
     m->cruise_speed = m->initial_speed;
     m->phase = (m->initial_speed > 0.0) ? TRAIN_RUNNING : TRAIN_WAITING;
     m->seen_release = 0;
@@ -535,25 +553,47 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     if (update_distance(m)) m->impact_speed = m->initial_speed;
     update_valid(m);
     maybe_sample(m); /* first sample at t = 0 */
+    set_view(m, m);
     return RG_OK;
 }
 
-int model_do_step(ModelData *m, double time, double h, char *msg, size_t len)
+/* Any communication step. The model integrates on the fixed grid of internal steps
+ * [k, k + 1) x 10 ms (times in whole ns since the start). The input brake_demand is sampled
+ * at each grid instant k x 10 ms (the value set before the communication step that
+ * contains the instant: [from_ns, to_ns) contains its start, not its end) and holds for that
+ * internal step. A step runs every internal step that ends at or before to_ns. If to_ns is
+ * not on the grid, the state stays at the last grid instant and the outputs show the state
+ * at to_ns: a copy of it integrated over the part of the internal step up to to_ns with the
+ * same equations (set_view); the whole internal step is computed once the communication
+ * reaches its end. Sensors are sampled on the grid only (their outputs hold in between);
+ * chN.valid follows the silence fault at to_ns. So the state on the grid does not depend
+ * on the communication steps, only on the demand at the grid instants. */
+int model_do_step(ModelData *m, int64_t from_ns, int64_t to_ns, char *msg, size_t len)
 {
-    double n;
-    int64_t i, steps;
-    (void)time; /* the model keeps its own time, a whole number of internal steps */
-
-    if (!isfinite(h) || h < 0.0 || h > 1e9) {
-        if (msg != NULL && len > 0) snprintf(msg, len, "invalid communication step %g s", h);
+    if (to_ns < from_ns || from_ns < m->steps * TRAIN_STEP_NS ||
+        from_ns >= (m->steps + 1) * TRAIN_STEP_NS) {
+        if (msg != NULL && len > 0)
+            snprintf(msg, len, "bad step from %lld ns to %lld ns (model at %lld ns)", (long long)from_ns,
+                     (long long)to_ns, (long long)(m->steps * TRAIN_STEP_NS));
         return RG_ERROR;
     }
-    n = floor(h / FIXED_STEP + 0.5);
-    steps = (int64_t)n;
-    for (i = 0; i < steps; i++) {
-        internal_step(m);
+    for (;;) {
+        const int64_t start = m->steps * TRAIN_STEP_NS;
+        if (start >= from_ns && start < to_ns) m->cell_demand = m->brake_demand; /* sample at the grid instant */
+        if (start + TRAIN_STEP_NS > to_ns) break;
+        internal_step(m, FIXED_STEP, (double)(m->steps + 1) * FIXED_STEP);
+        m->steps++;
         update_valid(m);
         maybe_sample(m);
+    }
+    if (to_ns == m->steps * TRAIN_STEP_NS) {
+        set_view(m, m);
+    } else {
+        ModelData part = *m;
+        const double dt = (double)(to_ns - m->steps * TRAIN_STEP_NS) / 1e9;
+        internal_step(&part, dt, (double)to_ns / 1e9);
+        update_valid(&part);
+        set_view(m, &part);
     }
     return RG_OK;
 }
@@ -565,6 +605,11 @@ static const TrainChannel *channel_of(const ModelData *m, uint32_t vr, int *fiel
     const uint32_t k = vr - (uint32_t)vr_ch1_status;
     *field = (int)(k % 5u);
     return &m->ch[k / 5u];
+}
+
+static int k_channel(uint32_t vr)
+{
+    return (int)((vr - (uint32_t)vr_ch1_status) / 5u);
 }
 
 static int is_channel_vr(uint32_t vr)
@@ -612,13 +657,13 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_sensor_period: return m->sensor_period;
     case vr_fault_start: return m->fault_start;
     case vr_fault_end: return m->fault_end;
-    case vr_train_speed: return m->speed / (1.0 + m->speed_error);
-    case vr_true_speed: return m->speed;
-    case vr_position: return m->position;
-    case vr_acceleration: return m->acceleration;
-    case vr_true_distance: return m->true_distance;
-    case vr_brake_decel: return m->brake_decel;
-    case vr_impact_speed: return m->impact_speed;
+    case vr_train_speed: return m->view.speed / (1.0 + m->speed_error);
+    case vr_true_speed: return m->view.speed;
+    case vr_position: return m->view.position;
+    case vr_acceleration: return m->view.acceleration;
+    case vr_true_distance: return m->view.true_distance;
+    case vr_brake_decel: return m->view.brake_decel;
+    case vr_impact_speed: return m->view.impact_speed;
     default: return 0.0;
     }
 }
@@ -644,7 +689,7 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     case vr_fault_channel: return m->fault_channel;
     case vr_train_track_condition: return m->out_track_condition;
     case vr_train_brake_status: return m->out_brake_status;
-    case vr_brake_level: return m->brake_level;
+    case vr_brake_level: return m->view.brake_level;
     default: return 0;
     }
 }
@@ -653,12 +698,12 @@ int model_get_boolean(const ModelData *m, uint32_t vr)
 {
     if (is_channel_vr(vr)) {
         int field;
-        const TrainChannel *ch = channel_of(m, vr, &field);
-        return field == 4 ? ch->valid : 0;
+        (void)channel_of(m, vr, &field);
+        return field == 4 ? m->view.valid[k_channel(vr)] : 0;
     }
     switch (vr) {
     case vr_obstacle_present: return m->obstacle_present;
-    case vr_collided: return m->collided;
+    case vr_collided: return m->view.collided;
     default: return 0;
     }
 }

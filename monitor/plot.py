@@ -1,0 +1,140 @@
+"""The plotting room every shell draws runs with (can_bus's `railguard run`, fmu's co-simulation,
+the CLI's replay). One figure of a run (PNG): speed, distance, demand and mode over time, and beside them
+the speed-distance diagram ETCS users know: the braking curves EBD, EBI, SBI and warning
+for the run's obstacle (monitor.core.braking) with the train's trajectory through them,
+coloured by the demand it was under."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from monitor.core.config import Config
+from monitor.core.types import DEMAND_NAMES, MODE_NAMES
+
+CURVE_STYLE = (("ebd_dm", "EBD", "black", "-"), ("ebi_dm", "EBI", "tab:red", "-"),
+               ("sbi_dm", "SBI", "tab:orange", "--"), ("warning_dm", "warning", "goldenrod", ":"))
+# trajectory colour by what the monitor asked for: none, warning, service, emergency
+STATE_STYLE = (("no demand", "tab:blue"), ("warning", "goldenrod"), ("service", "tab:orange"), ("emergency", "tab:red"))
+
+
+@dataclass
+class SpeedDistance:
+    """What the speed-distance diagram needs from a run. `distance_m` is the true distance
+    to the obstacle per sample (None: the run has no obstacle; the trajectory is then drawn
+    against `position_m`, without curves)."""
+
+    config: Config
+    distance_m: list | None
+    position_m: list
+    speed_mps: list
+    demand: list
+    warning: list
+    obstacle_speed_mps: float = 0.0       # along the track; negative: oncoming
+    track: int = 0                        # conditions the train reported (the curves use them)
+    brake: int = 0
+    visible_m: float | None = None        # where the sensors first see the obstacle
+
+
+def curve_points(cfg: Config, v_max_mps: float, obstacle_speed_mps: float = 0.0, track: int = 0, brake: int = 0,
+                 step_mps: float = 0.25) -> tuple[list, dict]:
+    """(speeds m/s, {"EBD" | "EBI" | "SBI" | "warning": distances m}) of the monitor's curves for an obstacle
+    moving at `obstacle_speed_mps` (closing speed = train speed - obstacle speed)."""
+    from monitor.core.braking import curves
+
+    speeds = [i * step_mps for i in range(int(v_max_mps / step_mps) + 2)]
+    out = {label: [] for _, label, *_ in CURVE_STYLE}
+    for v in speeds:
+        v_cms = round(v * 100)
+        c = curves(cfg, v_cms, track, brake, v_cms - round(obstacle_speed_mps * 100), 0)
+        for field, label, *_ in CURVE_STYLE:
+            out[label].append(getattr(c, field) / 10)
+    return speeds, out
+
+
+def _state(demand: int, warning: bool) -> int:
+    return 1 + demand if demand else int(bool(warning))
+
+
+def draw_speed_distance(ax, sd: SpeedDistance) -> None:
+    """The diagram on a matplotlib axis: distance to the obstacle falls to the right (the
+    obstacle at 0), as a driver approaches it."""
+    x = sd.distance_m if sd.distance_m is not None else sd.position_m
+    states = [_state(d, w) for d, w in zip(sd.demand, sd.warning)]
+    v_top = max(sd.speed_mps, default=0.0)
+    if sd.distance_m is not None:
+        speeds, pts = curve_points(sd.config, max(v_top * 1.15, 5.0), sd.obstacle_speed_mps, sd.track, sd.brake)
+        for _, label, color, style in CURVE_STYLE:
+            ax.plot(pts[label], speeds, style, color=color, lw=1.6, label=label)
+        reach = max(pts["warning"][-1], sd.visible_m or 0.0) * 1.25
+        ax.axvline(0.0, color="black", lw=3)
+        ax.annotate("obstacle", (0.0, 0.5), xycoords=("data", "axes fraction"), xytext=(-4, 0),
+                    textcoords="offset points", rotation=90, ha="right", va="center", fontsize=8)
+        if sd.visible_m is not None:
+            ax.axvline(sd.visible_m, color="gray", ls="-.", lw=1)
+            ax.annotate("first visible", (sd.visible_m, 0.5), xycoords=("data", "axes fraction"), xytext=(-3, 0),
+                        textcoords="offset points", rotation=90, ha="right", va="center", fontsize=8, color="gray")
+        ax.set_xlim(reach, min(-0.03 * reach, -5.0))
+        ax.set_xlabel("distance to the obstacle (m)")
+        note = []
+        if sd.obstacle_speed_mps < 0:
+            note.append(f"oncoming at {-sd.obstacle_speed_mps:g} m/s")
+        if sd.track or sd.brake:
+            note.append("reported: " + " + ".join(n for n, on in (("slippery", sd.track), ("degraded", sd.brake)) if on))
+        if note:
+            ax.set_title("curves for an obstacle " + "; ".join(note), fontsize=9)
+    else:
+        ax.set_xlabel("position (m); no obstacle: no curves")
+    # the trajectory, one segment per run of the same state
+    start = 0
+    drawn = set()
+    for i in range(1, len(x) + 1):
+        if i == len(x) or states[i] != states[start]:
+            label, color = STATE_STYLE[states[start]]
+            seg = slice(start, min(i + 1, len(x)))
+            ax.plot(x[seg], sd.speed_mps[seg], color=color, lw=3.2, alpha=0.75,
+                    label=None if label in drawn else f"train: {label}")
+            drawn.add(label)
+            start = i
+    ax.set_ylim(0, max(v_top * 1.18, 1.0))
+    ax.set_ylabel("speed (m/s)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8)
+
+
+def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, demand, mode,
+             speed_distance: SpeedDistance | None = None) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if speed_distance is None:
+        fig, axes = plt.subplots(4, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+    else:
+        fig = plt.figure(figsize=(17, 8.5), constrained_layout=True)
+        grid = fig.add_gridspec(4, 2, width_ratios=(1.0, 1.15))
+        axes = [fig.add_subplot(grid[0, 0])]
+        axes += [fig.add_subplot(grid[i, 0], sharex=axes[0]) for i in range(1, 4)]
+        draw_speed_distance(fig.add_subplot(grid[:, 1]), speed_distance)
+    axes[0].plot(t_s, speed_mps, color="tab:blue")
+    axes[0].set_ylabel("speed (m/s)")
+    if distance_m is not None:
+        axes[1].plot(t_s, [float("nan") if d is None else d for d in distance_m], label="true distance", color="tab:gray")
+    axes[1].plot(t_s, [float("nan") if d is None else d for d in voted_m], ".", ms=2, label="voted distance", color="tab:orange")
+    axes[1].set_ylabel("distance (m)")
+    axes[1].legend(loc="upper right", fontsize=8)
+    axes[2].step(t_s, demand, where="post", color="tab:red")
+    axes[2].set_yticks(range(3), DEMAND_NAMES)
+    axes[2].set_ylabel("demand")
+    axes[3].step(t_s, mode, where="post", color="tab:green")
+    axes[3].set_yticks(range(4), MODE_NAMES)
+    axes[3].set_ylabel("mode")
+    axes[3].set_xlabel("time (s)")
+    for ax in axes[:3]:
+        ax.tick_params(labelbottom=False)
+    fig.suptitle(title)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return out

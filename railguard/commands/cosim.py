@@ -1,0 +1,83 @@
+"""`railguard cosim`: the train-dynamics FMU and the monitor FMU closed in FMPy."""
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+from .. import options, output
+from ..setup import table_bytes
+from .scenarios import shipped_help
+
+
+def _summary(scen, result, args: argparse.Namespace, csv_path, plot_path) -> dict:
+    return {
+        "scenario": scen.name, "outcome": result.outcome,
+        "margin_m": None if result.margin_m is None else round(result.margin_m, 3),
+        "steps": result.steps, "monitor_cycles": result.monitor_cycles, "step_s": args.step,
+        "simulated_s": round(result.simulated_s, 3), "wall_s": round(result.wall_s, 4),
+        "realtime_factor": round(result.realtime_factor, 1),
+        "first_brake_s": result.first_brake_s, "max_demand": result.max_demand,
+        "demand_delay_cycles": result.demand_delay_cycles,
+        "stop_margin_m": None if result.stop_margin_m is None else round(result.stop_margin_m, 3),
+        "impact_speed": round(result.impact_speed, 3),
+        "csv": str(csv_path), "plot": None if plot_path is None else str(plot_path),
+        "files": output.files_of(csv_path, plot_path),
+    }
+
+
+def cosim(args: argparse.Namespace) -> int:
+    from fmu import build, scenario
+    from fmu import cosim as loop
+
+    scen = scenario.load(args.scenario)
+    if args.braking:
+        from monitor.declaration import load
+
+        scen = scenario.with_braking(scen, load(args.braking), args.braking)
+    out = Path(args.out)
+    with tempfile.TemporaryDirectory(prefix="railguard-cosim-") as tmp:
+        monitor_fmu = args.monitor_fmu or build.build_monitor(table_bytes(args.table or scen.table), args.fmi, tmp)
+        train_fmu = args.train_fmu or build.build_train(tmp)
+        result = loop.run_scenario(scen, monitor_fmu, train_fmu, args.step, args.demand_delay)
+    csv_path = loop.write_csv(result, out / f"cosim-{scen.name}.csv")
+    plot_path = None if args.no_plot else loop.plot(result, out / f"cosim-{scen.name}.png",
+                                                    f"railguard co-simulation: {scen.name}")
+    if args.json:
+        print(json.dumps(_summary(scen, result, args, csv_path, plot_path)))
+        return 0
+    margin = "" if result.margin_m is None else f", margin {result.margin_m:.1f} m"
+    brake = "never braked" if result.first_brake_s is None else f"first brake demand at {result.first_brake_s:.1f} s"
+    print(f"{scen.name}: {result.outcome}{margin}; {brake}; {result.steps} steps of {args.step * 1000:g} ms "
+          f"({result.monitor_cycles} monitor cycles) in {result.wall_s:.2f} s = {result.realtime_factor:,.0f}x real time")
+    output.wrote([csv_path, plot_path])
+    return 0
+
+
+def register(sub) -> None:
+    c = sub.add_parser(
+        "cosim",
+        help="co-simulate the train-dynamics FMU and the monitor FMU in FMPy",
+        description="Build both FMUs (unless given), close the loop in FMPy with a master over FMPy's slave "
+                    "classes (train every --step, monitor every 100 ms), write a CSV of all signals and a plot, "
+                    "and print the outcome and the speed as a real-time factor. FMU log lines go to stderr.",
+        epilog=shipped_help("cosim"),
+    )
+    from fmu.scenario import DEFAULT
+
+    c.add_argument("scenario", nargs="?", default=DEFAULT, metavar="SCENARIO",
+                   help="a shipped scenario (listed below) or a .toml file (default: %(default)s)")
+    options.add_table(c, None, "default: the scenario's table, else m2")
+    c.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="FMI version of the monitor FMU (default: %(default)s)")
+    c.add_argument("--step", type=options.positive_float, default=0.01, metavar="S",
+                   help="communication step of the train FMU in seconds (default: %(default)s)")
+    c.add_argument("--monitor-fmu", metavar="FILE", help="use this monitor FMU instead of building one (default: build it)")
+    c.add_argument("--train-fmu", metavar="FILE", help="use this train FMU instead of building one (default: build it)")
+    c.add_argument("--braking", metavar="FILE.toml", help=options.BRAKING_HELP + "; replaces the scenario's [braking]")
+    c.add_argument("--demand-delay", type=int, metavar="CYCLES",
+                   help="monitor cycles before the train acts on a demand (default: the scenario's, else 1: as on CAN)")
+    options.add_out(c, what="folder for the CSV and the plot")
+    c.add_argument("--no-plot", action="store_true", help="do not draw the plot")
+    options.add_json(c, "print the outcome as one JSON object")
+    c.set_defaults(func=cosim)

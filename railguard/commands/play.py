@@ -1,0 +1,57 @@
+"""`railguard play`: the scenario player alone on a real bus (the monitor runs elsewhere)."""
+from __future__ import annotations
+
+import argparse
+
+from .. import options, output
+from ..errors import UserError
+from ..setup import bus_kwargs
+from .scenarios import shipped_help
+
+
+def play(args: argparse.Namespace) -> int:
+    import signal
+    import threading
+
+    from can_bus import scenario as scenarios
+    from can_bus.clock import WallClock
+    from can_bus.player import Player
+    from can_bus.session import open_bus, play_loop
+
+    scen = scenarios.load(args.scenario)
+    bus_cfg = bus_kwargs(args)
+    if bus_cfg is None:
+        raise UserError("play needs a real bus: give --interface and --channel (e.g. --interface socketcan "
+                        "--channel vcan0); on the in-process bus use `railguard run`, which plays with the monitor")
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    bus = open_bus(bus_cfg)
+    try:
+        player = Player(bus, scen, args.period, wait_for_monitor=not args.no_wait)
+        play_loop(player, WallClock(), stop)
+    finally:
+        bus.shutdown()
+    summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent,
+                   faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
+    output.summary(summary, args.json)
+    return 0
+
+
+def register(sub) -> None:
+    pl = sub.add_parser(
+        "play",
+        help="run the scenario player alone on a real bus (the monitor runs elsewhere)",
+        description="Simulate the train and the six sensor channels of a scenario on a real bus, in real time. "
+                    "The train waits at the entry until the monitor reports NORMAL with no demand. A bus is "
+                    "required (--interface and --channel, or python-can's configuration): the in-process bus "
+                    "is private to one process. Writes no files.",
+        epilog=shipped_help("run"),
+    )
+    pl.add_argument("scenario", metavar="SCENARIO", help="a shipped scenario name or a .toml file")
+    options.add_bus(pl, real_only=True)
+    pl.add_argument("--period", type=options.positive_int, default=100, metavar="MS",
+                    help="send period in ms (default: %(default)s)")
+    pl.add_argument("--no-wait", action="store_true", help="start at once, do not wait for the monitor")
+    options.add_json(pl, "print the outcome as one JSON object")
+    pl.set_defaults(func=play)

@@ -1,0 +1,220 @@
+"""The value tables (VAL_) and units of can_bus/railguard.dbc, as a user of cantools sees them.
+
+Every VAL_ entry is compared with the constant the project encodes it from (monitor/core/types.py,
+the codec's module/channel fields, the runner's ErrorFlags bits): changing a constant without the
+DBC, or the DBC without the constant, fails here. Then real frames, produced by the project's own
+sender in a scenario run on the virtual bus, are decoded with cantools' API and its command line,
+and must show the names (e.g. VotedDistance 65535 -> "no_distance").
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import cantools
+import pytest
+from cantools.database.namedsignalvalue import NamedSignalValue
+
+from can_bus import codec, logfile, scenario, session
+from can_bus.clock import SimClock
+from can_bus.runner import MonitorRunner
+from monitor.core import cycle as core
+from monitor.core import types as T
+from monitor.core.config import Config
+
+ROOT = Path(__file__).resolve().parents[1]
+DBC_PATH = ROOT / "can_bus" / "railguard.dbc"
+TABLE = ROOT / "monitor" / "tables" / "m2.table.rgt"
+
+REASON_BITS = (T.R_TABLE, T.R_ENVELOPE, T.R_SYSTEM_ERROR, T.R_LATCH, T.R_INIT, T.R_SAFE_STOP, T.R_STALE,
+               T.R_PERCEPTOR, T.R_DEADLINE, T.R_TRAIN_INPUT, T.R_SBI, T.R_WARNING, T.R_DISPUTE)
+
+
+@pytest.fixture(scope="module")
+def db():
+    return cantools.database.load_file(str(DBC_PATH))
+
+
+def choices(db, message: str, signal: str) -> dict:
+    sig = db.get_message_by_name(message).get_signal_by_name(signal)
+    return {int(k): str(v) for k, v in (sig.choices or {}).items()}
+
+
+def obstacle_messages(db) -> list:
+    return [db.get_message_by_frame_id(fid) for fid in codec.OBSTACLE_IDS]
+
+
+def error_flag_bits() -> dict:
+    """ErrorFlags as the runner sends it: one frame per cause, decoded by the project's receiver."""
+
+    class Capture:
+        def __init__(self):
+            self.sent = []
+
+        def send(self, msg, timeout=None):
+            self.sent.append(msg)
+
+    bus = Capture()
+    runner = MonitorRunner(bus, core.create(Config(), TABLE.read_bytes()), SimClock())
+    causes = {f"module_{m + 1}": dict(module_flags=1 << m) for m in range(3)}
+    causes |= {"system_error": dict(system_error=True), "stale": dict(reasons=T.R_STALE),
+               "perceptor": dict(reasons=T.R_PERCEPTOR), "none": {}}
+    base = dict(demand=0, reasons=0, distance_dm=T.NO_DISTANCE, node=0, mode=T.NORMAL, module_flags=0,
+                system_error=False, observation=0, cycle=0, error_cycles=0)
+    out = {}
+    for name, change in causes.items():
+        runner.send(T.Outputs(**(base | change)))
+        msg = bus.sent[-1]
+        assert msg.arbitration_id == codec.MONITOR_STATUS_ID
+        rx = codec.Receiver()
+        assert rx.accept(msg.arbitration_id, msg.data, 0) == "MonitorStatus"
+        out[rx.status["ErrorFlags"]] = name
+    return out
+
+
+# ----------------------------------------------------------------------------- every VAL_ entry
+
+def expected_tables(db) -> dict:
+    """(message, signal) -> {raw value: name}, each derived from the constant the project sends."""
+    lower = [n.lower() for n in T.STATUS_NAMES]
+    status = {T.ABSENT: lower[T.ABSENT], T.PRESENT: lower[T.PRESENT], T.DEGRADED: lower[T.DEGRADED]}
+    obstacle = {T.STATIC: "static", T.DYNAMIC: "dynamic", T.TRAIN: "train"}
+    warning = {int(False): "none", int(True): "warning"}
+    exp = {
+        ("BrakeDemand", "Level"): {T.MAINTAIN: T.DEMAND_NAMES[T.MAINTAIN], T.SERVICE: T.DEMAND_NAMES[T.SERVICE],
+                                   T.EMERGENCY: T.DEMAND_NAMES[T.EMERGENCY]},
+        ("BrakeDemand", "Warning"): warning,
+        ("BrakeDemand", "Reason"): {0: "none"} | {bit: name for bit, name in zip(REASON_BITS, T.REASON_NAMES)},
+        ("TrainState", "TrackCondition"): {T.TRACK_NORMAL: "normal", T.TRACK_SLIPPERY: "slippery"},
+        ("TrainState", "BrakeStatus"): {T.BRAKE_NORMAL: "normal", T.BRAKE_DEGRADED: "degraded"},
+        ("MonitorStatus", "Mode"): {m: T.MODE_NAMES[m] for m in (T.INIT, T.NORMAL, T.DEGRADED_MODE, T.SAFE_STOP)},
+        ("MonitorStatus", "Warning"): warning,
+        ("MonitorStatus", "ForeignOutput"): {int(False): "none", int(True): "foreign_sender"},
+        ("MonitorStatus", "ErrorFlags"): error_flag_bits(),
+        ("MonitorStatus", "VotedDistance"): {T.NO_DISTANCE: "no_distance"},
+    }
+    for ch, msg in enumerate(obstacle_messages(db)):
+        exp[(msg.name, "Status")] = status
+        exp[(msg.name, "ObstacleType")] = obstacle
+        # the codec's module/channel fields of channel `ch`, named as the message is (ObstacleReport_M1C1 ...)
+        fields = codec.report_signals(T.Report(T.ABSENT, 0, 0, T.STATIC, 0), ch)
+        exp[(msg.name, "Module")] = {m: f"module_{m + 1}" for m in range(3)}
+        exp[(msg.name, "Channel")] = {c: f"channel_{c + 1}" for c in range(2)}
+        assert msg.name == f"ObstacleReport_M{fields['Module'] + 1}C{fields['Channel'] + 1}"
+    return exp
+
+
+def test_reason_names_and_bits_are_the_cores():
+    assert len(REASON_BITS) == len(T.REASON_NAMES)
+    assert list(REASON_BITS) == [1 << i for i in range(len(REASON_BITS))]
+    sig = cantools.database.load_file(str(DBC_PATH)).get_message_by_name("BrakeDemand").get_signal_by_name("Reason")
+    assert sum(REASON_BITS) == sig.maximum      # every bit fits, none beyond the range
+
+
+def test_every_value_table_matches_the_constants_the_project_sends(db):
+    expected = expected_tables(db)
+    actual = {(m.name, s.name): choices(db, m.name, s.name) for m in db.messages for s in m.signals if s.choices}
+    # no table without a check, no checked signal without its table
+    assert set(actual) == set(expected)
+    for key, table in expected.items():
+        assert actual[key] == table, key
+
+
+def test_every_named_value_is_inside_the_signal_range(db):
+    for msg in db.messages:
+        for sig in msg.signals:
+            for raw in (sig.choices or {}):
+                assert 0 <= raw < 1 << sig.length, (msg.name, sig.name, raw)
+                if sig.name != "VotedDistance":
+                    assert sig.minimum <= raw * sig.scale + sig.offset <= sig.maximum, (msg.name, sig.name, raw)
+
+
+def test_obstacle_distance_has_no_no_distance_code(db):
+    """A sensor report has no 'no distance' value: 65535 is refused, absence is Status absent."""
+    for ch, msg in enumerate(obstacle_messages(db)):
+        assert not msg.get_signal_by_name("Distance").choices
+        signals = codec.report_signals(T.Report(T.ABSENT, T.MAX_DISTANCE_DM, 0, T.STATIC, 0), ch)
+        rx = codec.Receiver()
+        assert rx.accept(msg.frame_id, codec.encode(msg.frame_id, signals, 0), 0) == msg.name
+        signals["Distance"] = T.NO_DISTANCE
+        assert rx.accept(msg.frame_id, codec.encode(msg.frame_id, signals, 1), 0) is None
+        assert rx.rejected["out_of_range"] == 1
+
+
+# ----------------------------------------------------------------------------- units
+
+def test_every_physical_signal_has_its_unit(db):
+    """The DBC's physical units are the core's integer units (DESIGN.md section 4) scaled."""
+    units = {"Distance": ("m", 0.1), "ClosingSpeed": ("m/s", 0.01), "Speed": ("m/s", 0.01),
+             "VotedDistance": ("m", 0.1)}
+    for msg in db.messages:
+        for sig in msg.signals:
+            if sig.name in units:
+                assert (sig.unit, sig.scale, sig.offset) == (*units[sig.name], 0), (msg.name, sig.name)
+            else:
+                # counters, enumerations, bit fields, CRC: raw integers without a unit
+                assert (sig.scale, sig.offset) == (1, 0) and not sig.unit, (msg.name, sig.name)
+
+
+# ----------------------------------------------------------------------------- as a user decodes
+
+@pytest.fixture(scope="module")
+def bus_log(tmp_path_factory) -> Path:
+    """A candump log of a scenario run on the virtual bus: every frame from the project's sender."""
+    out = tmp_path_factory.mktemp("dbc-values")
+    setup = core.create(Config(), TABLE.read_bytes())
+    result = session.run_virtual(setup, scenario.load("fault-cascade"), out, plot=False)
+    return Path(result.summary["log"])
+
+
+def test_cantools_decodes_real_frames_to_names(db, bus_log):
+    seen: dict[tuple, set] = {}
+    no_distance = 0
+    for f in logfile.read(bus_log):
+        fid, data = f.msg.arbitration_id, bytes(f.msg.data)
+        named = db.decode_message(fid, data, decode_choices=True)
+        raw = db.decode_message(fid, data, decode_choices=False, scaling=False)
+        msg = db.get_message_by_frame_id(fid)
+        for name, value in named.items():
+            if isinstance(value, NamedSignalValue):
+                # the name stands for exactly the raw value on the bus
+                assert value.value == raw[name] and value.name == choices(db, msg.name, name)[raw[name]]
+                seen.setdefault((msg.name, name), set()).add(value.name)
+            else:
+                assert raw[name] not in choices(db, msg.name, name), (msg.name, name, raw[name])
+        if fid == codec.MONITOR_STATUS_ID and raw["VotedDistance"] == T.NO_DISTANCE:
+            v = named["VotedDistance"]
+            assert isinstance(v, NamedSignalValue) and v.name == "no_distance" and v.value == 65535
+            no_distance += 1
+    assert no_distance > 0
+    assert seen[("BrakeDemand", "Level")] == {"none", "service", "emergency"}
+    assert {"NORMAL", "SAFE_STOP"} <= seen[("MonitorStatus", "Mode")]
+    assert {"none", "table", "safe_stop"} <= seen[("BrakeDemand", "Reason")]
+    assert {"absent", "present"} <= seen[("ObstacleReport_M1C1", "Status")]
+    for ch, msg in enumerate(obstacle_messages(db)):
+        assert seen[(msg.name, "Module")] == {f"module_{ch // 2 + 1}"}
+        assert seen[(msg.name, "Channel")] == {f"channel_{ch % 2 + 1}"}
+
+
+def test_cantools_command_line_decodes_a_candump_log(bus_log):
+    lines = bus_log.read_text(encoding="ascii").splitlines()
+    status = [ln for ln in lines if " 040#" in ln][:5]
+    demand = [ln for ln in lines if " 010#" in ln]
+    picked = status + [next(ln for ln in demand if codec.database().decode_message(
+        codec.BRAKE_DEMAND_ID, bytes.fromhex(ln.split("#")[1]), decode_choices=False)["Level"] == T.EMERGENCY)]
+    proc = subprocess.run([sys.executable, "-m", "cantools", "decode", "--single-line", str(DBC_PATH)],
+                          input="\n".join(picked) + "\n", capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout.splitlines()
+    assert len(out) == len(picked)
+    assert all("MonitorStatus(" in ln and "VotedDistance: no_distance" in ln for ln in out[:len(status)])
+    assert "Level: emergency" in out[-1]
+
+
+def test_cantools_dump_lists_the_value_tables():
+    proc = subprocess.run([sys.executable, "-m", "cantools", "dump", str(DBC_PATH)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    for text in ("65535 no_distance", "4096 dispute", "2 emergency", "3 SAFE_STOP", "32 perceptor"):
+        assert text in proc.stdout, text

@@ -1,0 +1,8 @@
+"""`python -m verification.mutation [--target python|c] [--files ...] [--json] [--list] ...`: the
+command line of the mutation tool (verification/mutation/tool.py, `main`)."""
+import sys
+
+from .tool import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,40 @@
+"""What is mutated and what judges it: the Python core's files and fast tests, the C core's
+decision functions and the comparison test, the job count, the subsets CI and the quick
+report run, and where the repository and the equivalents list are.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+
+ROOT = Path(__file__).resolve().parents[2]             # the repository: mutant ids are paths relative to it
+CORE = ROOT / "monitor" / "core"
+EQUIVALENTS = ROOT / "verification" / "mutation_equivalents.toml"
+PY_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py", "cycle.py", "braking.py", "config.py",
+            "table.py", "types.py")
+# the tests run against every Python mutant, fastest killers first (-x stops at the first failure)
+PY_TESTS = ("tests/test_core_mutants.py", "tests/test_core_cycle.py", "tests/test_supervision.py",
+            "tests/test_core_tables.py", "tests/test_table.py", "tests/test_core_stateful.py")
+JOBS = 2
+C_DIR = ROOT / "fmu" / "c"
+C_FILES = ("fmu/c/core/rg_core.c",)
+# sequences per table of the comparison test for each C mutant (the test itself runs 5000;
+# its minimum edge hits are scaled down with it): a mutant that survives these is reported
+# as a survivor even if the full test would kill it, so the score can only be too low
+C_SEQUENCES = 1000
+# the C mutants are judged by the Python-vs-C comparison alone
+C_TESTS = ("tests/test_fmu_equivalence.py",)
+# the functions of rg_core.c that are mutated: freshness and range, the voters, the zones,
+# the supervision ladder, combine, the latch and the speed class (the decisions the
+# Python-vs-C comparison must pin; the curve arithmetic, rg_step's plumbing, the
+# configuration and table checks and SHA-256 are not mutated yet)
+C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
+               "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_latch",
+               "speed_class")
+
+Progress = Callable[[str], None]
+
+# the subsets: CI's (tests/test_mutation.py) and `railguard verify --quick`'s
+CI_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py")
+REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_FILES)
