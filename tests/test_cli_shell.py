@@ -237,11 +237,54 @@ def test_ctrl_c_in_a_campaign_is_one_line_and_exit_130(tmp_path):
 # ------------------------------------------------------------------ the README's commands
 
 
+def readme_commands() -> list[list[str]]:
+    """The railguard command lines of the README's shell blocks, as argument lists."""
+    readme = (ROOT / "README.md").read_text()
+    lines = []
+    for block in readme.split("```sh")[1:]:
+        for line in block.split("```", 1)[0].splitlines():
+            line = line.split("#", 1)[0].strip()
+            if line.startswith("railguard "):
+                lines.append(line.split()[1:])
+    return lines
+
+
+def test_every_file_a_readme_command_reads_ships_with_the_repository():
+    """A README command runs from a fresh clone as written: no file the user would have to write
+    first (outputs of earlier commands, under railguard-out, excepted)."""
+    commands = readme_commands()
+    assert len(commands) > 20
+    for argv in commands:
+        for token in argv:
+            if token.endswith((".toml", ".log", ".pomdp", ".rgt")) and not token.startswith("railguard-out/"):
+                assert (ROOT / token).is_file(), (argv, token)
+
+
+def test_every_readme_command_parses():
+    parser = build_parser()
+    for argv in readme_commands():
+        args = parser.parse_args(argv)
+        assert callable(args.func), argv
+
+
 def test_the_readme_config_example_works_as_written(tmp_path):
     readme = (ROOT / "README.md").read_text()
     block = readme.split("```toml", 1)[1].split("```", 1)[0]
-    (tmp_path / "my.toml").write_text(block)
-    line = next(line for line in readme.splitlines() if "--config my.toml" in line)
-    argv = line.split("#")[0].split()[1:]       # "railguard solve --model mX --config my.toml"
-    res = cli(*argv, "--max-iterations", "3", "--out", tmp_path, cwd=tmp_path)
+    shipped = (ROOT / "examples" / "m1-paper-zones.toml").read_text()
+    assert block.strip() in shipped          # the README shows the file the command reads
+    argv = next(a for a in readme_commands() if "--config" in a)
+    res = cli(*argv, "--max-iterations", "3", "--out", tmp_path)
     assert res.returncode == 0, res.stderr
+    assert "lower bound" in res.stdout
+
+
+def test_cosim_at_a_step_that_does_not_divide_the_monitor_period(tmp_path):
+    """Refused before issue 15 ("must divide 0.1 s"); the FMUs now take any communication step."""
+    runs = {}
+    for step in ("0.01", "0.025"):
+        res = cli("cosim", "late-obstacle", "--step", step, "--json", "--no-plot", "--out", tmp_path / step)
+        assert res.returncode == 0, res.stderr
+        runs[step] = json.loads(res.stdout)
+    assert runs["0.025"]["outcome"] == runs["0.01"]["outcome"] == "stopped"
+    assert runs["0.025"]["monitor_cycles"] == runs["0.01"]["monitor_cycles"]
+    assert abs(runs["0.025"]["margin_m"] - runs["0.01"]["margin_m"]) < 1.0

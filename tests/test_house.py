@@ -69,3 +69,38 @@ def test_the_checks_above_can_fail(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("def f():\n    from railguard.main import main\n    import verification.scale\n")
     assert project_imports(bad) == {"railguard", "verification"}
+
+
+def unresolved_relative_imports(path: Path) -> list[str]:
+    """Relative imports (lazy ones inside functions included) that name no module or package
+    beside the importer: what a move into a package silently breaks until the line runs."""
+    missing = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if not (isinstance(node, ast.ImportFrom) and node.level > 0):
+            continue
+        base = path.parent
+        for _ in range(node.level - 1):
+            base = base.parent
+        if node.module is None:
+            names = [a.name for a in node.names if not a.name.startswith("__")]
+            init = (base / "__init__.py").read_text(encoding="utf-8") if (base / "__init__.py").exists() else ""
+            missing += [n for n in names if not ((base / f"{n}.py").exists() or (base / n).is_dir() or n in init)]
+            continue
+        first = node.module.split(".")[0]
+        if not ((base / f"{first}.py").exists() or (base / first / "__init__.py").exists()):
+            missing.append(f"line {node.lineno}: .{node.module}")
+    return missing
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_relative_import_resolves(package):
+    broken = {str(p.relative_to(ROOT)): m for p in modules(package) if (m := unresolved_relative_imports(p))}
+    assert not broken
+
+
+def test_a_broken_relative_import_is_found(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "piece.py").write_text("def f():\n    from .hazard import X\n")
+    assert unresolved_relative_imports(pkg / "piece.py") == ["line 2: .hazard"]

@@ -11,6 +11,7 @@ import re
 import subprocess
 import sys
 
+from conftest import ROOT
 from verification import campaign as cp
 from verification.scale import Cluster, map_ordered
 
@@ -54,8 +55,7 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
 
 
 def test_campaign_cli_world_train_worse_than_declared_is_unsafe_and_readme_command_is_safe(tmp_path):
-    weak = tmp_path / "weak.toml"
-    weak.write_text("[world_train]\nemergency_decel = 1.0\nservice_decel = 0.5\nbrake_delay = 1.5\nbrake_buildup = 0.0\n")
+    weak = ROOT / "examples" / "weak-world-train.toml"      # the README's command, its shipped file
     bad = _railguard("campaign", "--quick", "--world-train", str(weak), "--workers", "2", "--json",
                      "--out", str(tmp_path / "weak"))
     assert bad.returncode == 1, bad.stderr[-2000:]

@@ -71,7 +71,9 @@ def register(sub) -> None:
     options.add_table(c, None, "default: the scenario's table, else m2")
     c.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="FMI version of the monitor FMU (default: %(default)s)")
     c.add_argument("--step", type=options.positive_float, default=0.01, metavar="S",
-                   help="communication step of the train FMU in seconds (default: %(default)s)")
+                   help="communication step of the train FMU in seconds; this master steps the monitor FMU "
+                        "every 100 ms, so the step must divide 0.1 s (the FMUs themselves take any step: "
+                        "docs/fmu.md) (default: %(default)s)")
     c.add_argument("--monitor-fmu", metavar="FILE", help="use this monitor FMU instead of building one (default: build it)")
     c.add_argument("--train-fmu", metavar="FILE", help="use this train FMU instead of building one (default: build it)")
     c.add_argument("--braking", metavar="FILE.toml", help=options.BRAKING_HELP + "; replaces the scenario's [braking]")

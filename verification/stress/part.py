@@ -49,7 +49,7 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
                      f"IS {rare['p_importance_sampling']:.3g} ({rare['ci95'][0]:.2g}..{rare['ci95'][1]:.2g}, "
                      f"ESS {rare['effective_sample_size']:.0f})",
                      f"naive MC {rare['naive']['failures']}/{rare['samples']} (95 % upper {rare['naive']['ci95_upper']:.2g})"])
-    from .hazard import THR_CATASTROPHIC, THR_SIL3
+    from ..hazard import THR_CATASTROPHIC, THR_SIL3
 
     thr_rows = []
     for name, r in results.items():
