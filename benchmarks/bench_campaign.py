@@ -33,7 +33,7 @@ def measure(specs: list, cluster: Cluster) -> dict:
     steady_runs = len(runs) - stamps[0][1]
     return {"workers": cluster.scheduler or cluster.size(), "runs": len(runs), "wall_s": round(t1 - t0, 2),
             "runs_per_s_wall": round(len(runs) / (t1 - t0), 1),
-            "runs_per_s_steady": round(steady_runs / (t1 - first), 1) if t1 > first else None,
+            "runs_per_s_steady": round(steady_runs / (t1 - first), 1) if len(stamps) > 1 and t1 > first else None,
             "runs_digest": cp.runs_digest(runs)}
 
 
@@ -51,7 +51,8 @@ def main() -> None:
             [measure(specs, Cluster(int(w))) for w in args.workers.split(",")])
     base = rows[0]
     for r in rows:
-        r["speedup_steady"] = round(r["runs_per_s_steady"] / base["runs_per_s_steady"], 2) if r["runs_per_s_steady"] else None
+        r["speedup_steady"] = (round(r["runs_per_s_steady"] / base["runs_per_s_steady"], 2)
+                               if r["runs_per_s_steady"] and base["runs_per_s_steady"] else None)
         r["speedup_wall"] = round(r["runs_per_s_wall"] / base["runs_per_s_wall"], 2)
     same = len({r["runs_digest"] for r in rows}) == 1
     if args.json:
@@ -59,10 +60,13 @@ def main() -> None:
                           "same_digest": same}))
         return
     print(f"campaign throughput, {len(specs):,} core-level runs, {os.cpu_count()} cores ({platform.machine()})")
+    def shown(value, fmt: str) -> str:     # a steady rate needs two or more jobs (one job of CHUNK runs has none)
+        return "-" if value is None else format(value, fmt)
+
     for r in rows:
         print(f"  workers {r['workers']}: {r['runs_per_s_wall']:7.1f} runs/s wall ({r['wall_s']:.1f} s), "
-              f"{r['runs_per_s_steady']:7.1f} runs/s steady; speedup {r['speedup_wall']:.2f}x wall, "
-              f"{r['speedup_steady']:.2f}x steady")
+              f"{shown(r['runs_per_s_steady'], '7.1f')} runs/s steady; speedup {r['speedup_wall']:.2f}x wall, "
+              f"{shown(r['speedup_steady'], '.2f')}x steady")
     print(f"  runs_digest {'identical' if same else 'DIFFERENT'}: {rows[0]['runs_digest']}")
 
 
