@@ -58,6 +58,15 @@ FMU_TRAIN_NAMES = {
 }
 
 
+def band_decel(bands, v: float) -> float:
+    """The deceleration of speed `v` in ((from_speed, decel), ...) bands from 0 m/s up."""
+    a = bands[0][1]
+    for lo, decel in bands[1:]:
+        if v >= lo:
+            a = decel
+    return a
+
+
 class ScenarioError(ValueError):
     """A scenario that cannot be read or played; one line naming the file and the key."""
 
@@ -90,11 +99,7 @@ class TrainSpec:
 
     def emergency_at(self, v: float) -> float:
         """The emergency deceleration at speed `v` (its speed band)."""
-        a = self.emergency_decel_mps2[0][1]
-        for lo, decel in self.emergency_decel_mps2[1:]:
-            if v >= lo:
-                a = decel
-        return a
+        return band_decel(self.emergency_decel_mps2, v)
 
 
 @dataclass(frozen=True)

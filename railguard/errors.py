@@ -25,17 +25,13 @@ def user_errors() -> tuple[type[BaseException], ...]:
     from monitor.offline.params import ConfigError
     from monitor.offline.pomdp import ModelError
     from monitor.offline.pomdp_file import PomdpFormatError
+    from monitor.scenario import ScenarioError as GroundScenarioError
     from verification.scale import ClusterError
     from verification.world_train import WorldTrainError
 
     errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, DeclarationError,
               WorldTrainError, ClusterError, OSError, zipfile.BadZipFile]
-    try:
-        from monitor.scenario import ScenarioError as GroundScenarioError
-
-        errors.append(GroundScenarioError)
-    except ImportError:  # the one scenario language is new; the shells' errors below cover it too
-        pass
+    errors.append(GroundScenarioError)
     try:
         import can
 

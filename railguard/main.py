@@ -28,6 +28,11 @@ class HelpFormatter(argparse.HelpFormatter):
 class Parser(argparse.ArgumentParser):
     """Usage errors in one line too, with where to read more, exit 2."""
 
+    def format_help(self) -> str:
+        if callable(self.epilog):          # a listing read from files: only when help is shown
+            self.epilog = self.epilog()
+        return super().format_help()
+
     def error(self, message: str):
         self.exit(EXIT_USAGE, f"railguard: error: {self.prog}: {message} (see {self.prog} --help)\n")
 

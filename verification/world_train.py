@@ -27,6 +27,8 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Optional
 
+from monitor.scenario import FMU_TRAIN_NAMES, band_decel
+
 STEP_S = 0.01                 # the FMU's FIXED_STEP
 G = 9.81
 SPEED_GAIN = 1.0              # 1/s, the FMU's cruise controller
@@ -62,11 +64,7 @@ class WorldTrain:
         return self.brake_delay + self.brake_buildup / 2
 
     def emergency_at(self, v: float) -> float:
-        a = self.emergency_decel[0][1]
-        for lo, decel in self.emergency_decel[1:]:
-            if v >= lo:
-                a = decel
-        return a
+        return band_decel(self.emergency_decel, v)
 
     def fmu_parameters(self) -> dict:
         """The train FMU's parameters for this train (tests hold the twin equal to it)."""
@@ -304,8 +302,6 @@ LIMITS = {"service_decel": (0.0, 20.0), "brake_delay": (0.0, 5.0), "brake_buildu
 def _scenario_names() -> dict:
     """The [train] keys of the one scenario language (monitor/scenario.py) that name a field
     here: a [world_train] table may use them (a scenario's [train] dynamics, pasted)."""
-    from monitor.scenario import FMU_TRAIN_NAMES
-
     own = {f.name for f in fields(WorldTrain)}
     return {key: name for key, name in FMU_TRAIN_NAMES.items() if name in own and key != name}
 

@@ -62,7 +62,7 @@ def register(sub) -> None:
         description="Build both FMUs (unless given), close the loop in FMPy with a master over FMPy's slave "
                     "classes (train every --step, monitor every 100 ms), write a CSV of all signals and a plot, "
                     "and print the outcome and the speed as a real-time factor. FMU log lines go to stderr.",
-        epilog=shipped_help("cosim"),
+        epilog=lambda: shipped_help("cosim"),
     )
     from fmu.scenario import DEFAULT
 

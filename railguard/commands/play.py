@@ -46,7 +46,7 @@ def register(sub) -> None:
                     "The train waits at the entry until the monitor reports NORMAL with no demand. A bus is "
                     "required (--interface and --channel, or python-can's configuration): the in-process bus "
                     "is private to one process. Writes no files.",
-        epilog=shipped_help("run"),
+        epilog=lambda: shipped_help("run"),
     )
     pl.add_argument("scenario", metavar="SCENARIO", help="a shipped scenario name or a .toml file")
     options.add_bus(pl, real_only=True)

@@ -45,7 +45,7 @@ def register(sub) -> None:
                     "(deterministic, as fast as the CPU allows). Writes a candump .log of the bus and a plot, "
                     "prints a summary. SIGINT/SIGTERM: a last emergency demand, the summary, exit 0. A run that "
                     "ends before its scenario does (--duration, a signal) has outcome 'incomplete'.",
-        epilog=shipped_help("run"),
+        epilog=lambda: shipped_help("run"),
     )
     options.add_monitor(r)
     options.add_bus(r)

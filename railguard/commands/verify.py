@@ -12,13 +12,10 @@ from ..errors import UserError
 from ..setup import braking_config
 
 # what a part needs beyond the package's own dependencies, and how to get it
-NEEDS = {
-    "closed_loop": ("python", ("stormpy",), "pip install -e '.[verify]'"),
-    "hazard": ("python", ("stormpy",), "pip install -e '.[verify]'"),
-    "proof": ("program", ("frama-c", "why3", "z3", "cvc4", "gcc"),
-              "apt-get install frama-c-base why3 z3 cvc4 gcc && why3 config detect"),
-    "mutation": ("python", ("pytest", "hypothesis"), "pip install -e '.[test]'"),
-}
+PYTHON_NEEDS = {"closed_loop": ("stormpy",), "hazard": ("stormpy",), "mutation": ("pytest", "hypothesis")}
+INSTALL = {"closed_loop": "pip install -e '.[verify]'", "hazard": "pip install -e '.[verify]'",
+           "mutation": "pip install -e '.[test]'",
+           "proof": "apt-get install frama-c-base why3 z3 cvc4 gcc && why3 config detect"}
 
 
 def missing_tools(parts: tuple[str, ...]) -> list[str]:
@@ -28,19 +25,14 @@ def missing_tools(parts: tuple[str, ...]) -> list[str]:
 
     lines = []
     for part in parts:
-        if part not in NEEDS:
-            continue
-        kind, names, how = NEEDS[part]
-        if kind == "python":
-            gone = [n for n in names if importlib.util.find_spec(n) is None]
-        elif part == "proof":
+        if part == "proof":
             from verification.proof import missing_tools as proof_missing
 
             gone = proof_missing() + ([] if shutil.which("gcc") else ["gcc"])
         else:
-            gone = [n for n in names if shutil.which(n) is None]
+            gone = [n for n in PYTHON_NEEDS.get(part, ()) if importlib.util.find_spec(n) is None]
         if gone:
-            lines.append(f"part {part} needs {', '.join(gone)} ({how})")
+            lines.append(f"part {part} needs {', '.join(gone)} ({INSTALL[part]})")
     return lines
 
 
