@@ -40,7 +40,7 @@ def register(sub) -> None:
                     "the model's closed loop (exact for finite-state controllers, Monte Carlo for belief tracking); "
                     "unnecessary_braking (fraction of obstacle-free time with a brake demand), stops_per_train_hour "
                     "and demand_changes_per_encounter by Monte Carlo in the model's seed world (m1: seed 000's "
-                    "world with 2 %% phantoms and misses; m2: seed 001's), with 95 %% intervals. Writes "
+                    "world with 2 % phantoms and misses; m2: seed 001's), with 95 % intervals. Writes "
                     "DIR/evaluate-NAME.json and a plot of p_hazard against unnecessary braking.",
         epilog="JSON shape: {\"table\": {...}, \"baselines\": {\"threshold\": {...}, ...}, ...}; every figure "
                "has a *_ci half-width. A table file's belief_tracking baseline needs its .alphas.npz beside it "
