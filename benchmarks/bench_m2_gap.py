@@ -34,10 +34,6 @@ sys.path.insert(0, str(ROOT))
 VARIANTS = ("shipped", "reduced", "reduced-hysteresis", "full-hysteresis")
 
 
-def without_release_cost(model):
-    return replace(model, release_cost=0.0)
-
-
 def run(variant: str, budget: float) -> dict:
     from monitor.offline import pipeline
     from monitor.offline.controller import ConditionLayer, compile_controller, reduced_model
@@ -53,16 +49,16 @@ def run(variant: str, budget: float) -> dict:
     else:
         base = reduced_model(model, ConditionLayer.of(model.observations, plan.conditions)) if variant.startswith("reduced") \
             else model
-        target = with_last_demand(base) if variant.endswith("hysteresis") else without_release_cost(base)
+        target = with_last_demand(base) if variant.endswith("hysteresis") else replace(base, release_cost=0.0)
         sol = solve(target, replace(plan.settings, time_budget_s=budget))
         comp = compile_controller(target, sol, max_nodes=plan.max_nodes, deadline=time.perf_counter() + budget)
         value, nodes, states = comp.value, comp.controller.nodes, target.shape[0]
     return {
         "variant": variant, "states": states, "budget_s": budget, "seconds": time.perf_counter() - t0,
         "lower_bound": sol.lower_bound, "upper_bound": sol.upper_bound, "trials": sol.iterations,
-        "solver_gap_percent": 100 * (sol.upper_bound - sol.lower_bound) / abs(sol.upper_bound),
+        "solver_gap_percent": pipeline.gap_percent(sol.upper_bound, sol.lower_bound),
         "table_value": value, "nodes": nodes,
-        "certified_gap_percent": 100 * (sol.upper_bound - value) / abs(sol.upper_bound),
+        "certified_gap_percent": pipeline.gap_percent(sol.upper_bound, value),
     }
 
 

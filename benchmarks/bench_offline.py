@@ -111,7 +111,7 @@ def bench_model(name: str, repeat: int) -> dict:
         "table_bytes": f["table_bytes"], "target_table_bytes": size, "nodes": f["nodes"],
         "controller_value": f["controller_value"], "lower_bound": f["lower_bound"],
         "upper_bound": f["upper_bound"], "gap_relative": f["gap"] / max(1.0, abs(f["upper_bound"])),
-        "solver_gap_percent": 100 * f["gap"] / max(1e-12, abs(f["upper_bound"])),
+        "solver_gap_percent": pipeline.gap_percent(f["upper_bound"], f["lower_bound"]),
         "certified_gap_percent": f["certified_gap_percent"],
         "iterations": f["iterations"], "stop_reason": f["stop_reason"], "peak_rss_mb": peak_rss_mb(),
     }

@@ -441,7 +441,8 @@ def test_last_demand_in_the_state_prices_the_release_cost_exactly(m1_result):
     lifted = with_last_demand(model)
     assert lifted.release_cost == 0 and lifted.shape == (3 * model.shape[0], *model.shape[1:])
     assert value_at(lifted, ctrl, evaluate(lifted, ctrl)) == pytest.approx(m1_result.compiled.value, abs=1e-9)
-    free = value_at(replace(model, release_cost=0.0), ctrl, evaluate(replace(model, release_cost=0.0), ctrl))
+    costless = replace(model, release_cost=0.0)
+    free = value_at(costless, ctrl, evaluate(costless, ctrl))
     assert free > m1_result.compiled.value + 1e-6
 
 
