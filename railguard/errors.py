@@ -30,8 +30,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
     from verification.world_train import WorldTrainError
 
     errors = [UserError, TableError, ConfigError, ModelError, PomdpFormatError, ConfigurationError, DeclarationError,
-              WorldTrainError, ClusterError, OSError, zipfile.BadZipFile]
-    errors.append(GroundScenarioError)
+              WorldTrainError, ClusterError, GroundScenarioError, OSError, zipfile.BadZipFile]
     try:
         import can
 
