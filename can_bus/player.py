@@ -46,6 +46,7 @@ class Player:
     sender: Sender = field(default_factory=Sender)
     trace: list = field(default_factory=list)
     frames_sent: int = 0
+    late_periods: int = 0        # periods whose frames were not sent: the player woke up after the next one began
     faults_injected: set = field(default_factory=set)
 
     def __post_init__(self) -> None:
@@ -176,7 +177,10 @@ class Player:
             if not (msg.is_error_frame or msg.is_remote_frame):
                 self.receiver.accept(msg.arbitration_id, msg.data, tick)
 
-    def step(self, tick: int) -> None:
+    def step(self, tick: int, send: bool = True) -> None:
+        """One period of the world. `send=False` moves the train without sending frames: a
+        player that woke up late (its host stalled) does not send a backlog of old reports in a
+        burst, which no real sensor does and which the monitor rightly refuses as babbling."""
         self.drain(tick)
         status = self.receiver.status
         mode = None if status is None else int(status["Mode"])
@@ -188,13 +192,16 @@ class Player:
         if self.started:
             self.move(level)
         speed = self.speed if self.started else 0.0
+        near = self.obstacle_distance()
+        self.trace.append(TraceRow(self.t, speed, None if near is None else near[0], level, mode))
+        if not send:
+            self.late_periods += 1
+            return
         tr = self.scenario.train
         self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, {
             "Speed": round(speed * 100), "TrackCondition": int(tr.track == "slippery"),
             "BrakeStatus": int(tr.brake == "degraded")}))
         self.send_reports(tick)
-        near = self.obstacle_distance()
-        self.trace.append(TraceRow(self.t, speed, None if near is None else near[0], level, mode))
 
     @property
     def finished(self) -> bool:

@@ -37,6 +37,10 @@ class BusOpenError(RuntimeError):
     """The CAN interface could not be opened; the message names it and says what to do."""
 
 
+class MonitorNotReady(RuntimeError):
+    """The player waited its limit for the monitor's NORMAL with no demand, and it never came."""
+
+
 def open_bus(bus_kwargs: dict, *, monitor: bool = False) -> can.BusABC:
     """Open a python-can bus; the monitor's own connection gets the kernel receive filter
     (SocketCAN) and CAN FD frames enabled, so that it sees, and counts, what replay counts."""
@@ -331,12 +335,19 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
     return RunResult(summarise(runner, player, log_path, plot_path, recorder.complete), runner, player)
 
 
-def play_loop(player: Player, clock, stop: threading.Event) -> None:
-    """Run the player in real time until its scenario ends or `stop` is set."""
-    tick = clock.now_ms()
+def play_loop(player: Player, clock, stop: threading.Event, wait_limit_ms: int | None = None) -> None:
+    """Run the player in real time until its scenario ends or `stop` is set. A player waiting
+    for a monitor that never reports NORMAL gives up after `wait_limit_ms` (None: never)."""
+    tick = first = clock.now_ms()
     while not stop.is_set() and not player.finished:
+        if wait_limit_ms is not None and not player.started and tick - first > wait_limit_ms:
+            raise MonitorNotReady(f"the monitor did not report NORMAL with no brake demand within {wait_limit_ms / 1000:g} s "
+                                  "(is it running on the same bus? MonitorStatus seen: "
+                                  f"{'yes' if player.receiver.status is not None else 'no'}); "
+                                  "--wait-limit waits longer, --no-wait starts at once")
         clock.sleep_until_ms(tick)
-        player.step(tick)
+        late = clock.now_ms() - tick >= player.period_ms    # the next period has begun: catch up silently
+        player.step(tick, send=not late)
         tick += player.period_ms
 
 

@@ -36,9 +36,9 @@ def user_errors() -> tuple[type[BaseException], ...]:
 
         from can_bus.replay import ReplayError
         from can_bus.scenario import ScenarioError
-        from can_bus.session import BusOpenError
+        from can_bus.session import BusOpenError, MonitorNotReady
 
-        errors += [ScenarioError, ReplayError, BusOpenError, can.CanError]
+        errors += [ScenarioError, ReplayError, BusOpenError, MonitorNotReady, can.CanError]
     except ImportError:  # the CAN shell is optional for the offline commands
         pass
     try:

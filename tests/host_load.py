@@ -2,14 +2,15 @@
 
 The vcan tests run the monitor in a user-mode Linux on one CPU. When the virtual machine
 under it loses its CPUs to other guests (CPU steal in /proc/stat), the whole sandbox runs in
-fits and starts: senders burst, cycles slip. Such a session cannot judge the monitor's timing;
-the timing tests run it once more and fail as "host too busy" if the second is no better.
+fits and starts: cycles slip. The timing tests then run a second session and judge the quieter
+of the two, quoting the steal in their messages (the player itself no longer bursts after a
+stall: it moves the train through missed periods without sending them).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-MAX_STEAL = 0.10   # more than 10 % of the CPU time taken by the hypervisor: timing cannot be judged
+MAX_STEAL = 0.10   # more than 10 % of the CPU time taken by the hypervisor: try for a quieter session
 
 
 def host_cpu() -> tuple[int, int]:

@@ -22,8 +22,8 @@ flooded, and notices the foreign sender (`foreign_output`).
 The sandbox is a user-mode Linux: when its host is busy, the whole sandbox stops for a
 moment, monitor and bus alike. A heartbeat (cangen sending every 10 ms, a C program that
 does nothing else) shows such stalls; their time is not counted against the monitor's
-gaps; a session that stalled too much is run once more, and fails as unable to judge if
-the second stalls too. Under CI=true a sandbox that cannot be set up is a failure, not a skip.
+gaps; a session that stalled too much (or whose host's hypervisor took more than 10 % of the
+CPU) is run once more, and the quieter of the two is judged. Under CI=true a sandbox that cannot be set up is a failure, not a skip.
 """
 from __future__ import annotations
 
@@ -172,13 +172,16 @@ class FloodRun:
     def stalled(self) -> float:
         return sum(b - a for a, b in self.stalls)
 
-    def could_judge(self) -> bool:
-        """False only if the sandbox stood still too long or its host's hypervisor took more
-        than MAX_STEAL of the CPU; a monitor that sent (almost) nothing is judged, by the tests."""
+    def stalled_share(self) -> float:
+        """Share of the monitor's sending time in which the whole sandbox stood still."""
         if len(self.demands) < 2:
-            return True
-        return (self.host_steal <= MAX_STEAL
-                and self.stalled() <= MAX_STALLED_SHARE * (self.demands[-1].t - self.demands[0].t))
+            return 0.0
+        return self.stalled() / max(1e-9, self.demands[-1].t - self.demands[0].t)
+
+    def quiet(self) -> bool:
+        """The sandbox ran steadily: little stalled time (the heartbeat) and little CPU taken by
+        the host's hypervisor. A monitor that sent (almost) nothing counts as quiet: the tests judge it."""
+        return self.host_steal <= MAX_STEAL and self.stalled_share() <= MAX_STALLED_SHARE
 
     def stalled_text(self) -> str:
         span = self.demands[-1].t - self.demands[0].t if len(self.demands) > 1 else 0.0
@@ -242,18 +245,16 @@ def session(out: Path) -> FloodRun:
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    """One session; a second one only if the sandbox itself stood still too long to judge the
-    monitor (its host was busy: the heartbeat and the host's CPU steal say so, not the
-    monitor's results)."""
+    """One session; a second one if the first was not quiet (its host was busy: the heartbeat
+    and the host's CPU steal say so, not the monitor's results), and the quieter of the two is
+    judged. The timing checks take the sandbox's own stalls out of every gap, so a busy host
+    does not fail the monitor; every message gives the stalls and the steal."""
     sandbox_available()
     first = session(tmp_path_factory.mktemp("flood"))
-    if first.could_judge():
+    if first.quiet():
         return first
     second = session(tmp_path_factory.mktemp("flood"))
-    if second.could_judge():
-        return second
-    pytest.fail(f"the sandbox stood still too long in two sessions to judge the monitor: {first.stalled_text()}; "
-                f"{second.stalled_text()} (host too busy)", pytrace=False)
+    return min(first, second, key=lambda r: (r.stalled_share(), r.host_steal))
 
 
 def test_every_flood_ran_at_flood_level(run):

@@ -317,6 +317,9 @@ ERROR_CASES = {
     "replay-garbage-log": lambda tmp: ["replay", str(_write(tmp / "junk.log", "hello world\n(x) y z\n")),
                                        "--out", str(tmp)],
     "play-without-bus": lambda tmp: ["play", "static-obstacle"],
+    # nobody on the bus: the player gives up waiting for the monitor instead of waiting forever
+    "play-without-monitor": lambda tmp: ["play", "static-obstacle", "--interface", "virtual", "--channel",
+                                         "rg-nobody", "--wait-limit", "0.5"],
     "scenario-unknown-key": lambda tmp: ["run", "--scenario", str(_bad_scenario(tmp)), "--out", str(tmp)],
 }
 
@@ -336,12 +339,69 @@ def test_user_errors_in_process(capsys, tmp_path, monkeypatch, case):
     assert not list(tmp_path.glob("run-*")), "nothing is written on a refused run"
 
 
-@pytest.mark.parametrize("case", ["play-without-bus", "replay-not-a-log", "scenario-unknown-key"])
+@pytest.mark.parametrize("case", ["play-without-bus", "play-without-monitor", "replay-not-a-log", "scenario-unknown-key"])
 def test_user_errors_in_a_subprocess(tmp_path, case):
     proc = subprocess.run([sys.executable, "-m", "railguard", *ERROR_CASES[case](tmp_path)],
                           capture_output=True, text=True, timeout=60, env=_clean_env(), cwd=str(tmp_path))
     _assert_one_line_error(proc.returncode, proc.stderr)
     assert proc.stdout == ""
+    if case == "play-without-monitor":
+        assert "did not report NORMAL" in proc.stderr and "0.5 s" in proc.stderr and "seen: no" in proc.stderr
+
+
+class StallingClock:
+    """Wall-clock stand-in for play_loop: on time, except that one sleep wakes up 350 ms late
+    (the host stalled the player's process)."""
+
+    simulated = True
+
+    def __init__(self, stall_at_ms: int) -> None:
+        self.t = 0
+        self.stall_at_ms = stall_at_ms
+
+    def now_ms(self) -> int:
+        return self.t
+
+    def sleep_until_ms(self, tick: int) -> None:
+        self.t = max(self.t, tick)
+        if self.stall_at_ms is not None and tick >= self.stall_at_ms:
+            self.t += 350
+            self.stall_at_ms = None
+
+
+def test_a_late_player_moves_the_train_but_sends_no_burst():
+    """A stalled player catches up on the world, not on the bus: at most one frame per ID per
+    period even right after the stall (a burst is babbling to the monitor), and the train
+    covers the same ground as without the stall."""
+    import threading
+
+    import can
+
+    from can_bus.codec import TRAIN_STATE_ID
+    from can_bus.player import Player
+    from can_bus.scenario import load
+    from can_bus.session import play_loop
+
+    def play(clock):
+        with can.Bus(interface="virtual", channel="rg-late") as tx:
+            player = Player(tx, load("no-obstacle"), wait_for_monitor=False)
+            sent_at = []
+            original = player.send
+
+            def send(frame_id, data):
+                sent_at.append((clock.now_ms(), frame_id))
+                original(frame_id, data)
+
+            player.send = send
+            play_loop(player, clock, threading.Event())
+            return player, sent_at
+
+    steady, steady_frames = play(StallingClock(None))
+    late, late_frames = play(StallingClock(1000))
+    assert steady.late_periods == 0 and late.late_periods == 3
+    state = [t for t, fid in late_frames if fid == TRAIN_STATE_ID]
+    assert len(state) == len(steady.trace) - 3 == len(set(state)), "one TrainState per period, none in a burst"
+    assert late.position == pytest.approx(steady.position) and late.position > 0
 
 
 # ----------------------------------------------------------------------------- deadline overruns

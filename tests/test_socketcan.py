@@ -45,20 +45,22 @@ def session_files(out: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
-    """One session; a second one only if the host's hypervisor took so much CPU that the
-    Python player in the sandbox sent in bursts (host_load.py): the host says so, not the
-    monitor's results."""
+    """One session; a second one if the host's hypervisor took so much CPU that the sandbox ran
+    in fits (host_load.py), and the one with less steal is judged. The steal is written to
+    host.txt in the session's folder and quoted by the checks that depend on timing."""
     if shutil.which("apt-get") is None and not (vcan.cache_dir() / "root/usr/bin/linux.uml").is_file():
         if os.environ.get("CI") == "true":
             pytest.fail("no apt-get to fetch user-mode-linux, and no cached sandbox")
         pytest.skip("needs apt-get (Debian) for the user-mode-linux sandbox")
     out, steal = one_session(tmp_path_factory.mktemp("vcan"))
     if steal > MAX_STEAL:
-        out, steal = one_session(tmp_path_factory.mktemp("vcan"))
-    if steal > MAX_STEAL:
-        pytest.fail(f"host CPU steal {steal:.0%} in two sessions: the sandbox cannot judge the monitor (host too busy)",
-                    pytrace=False)
+        out, steal = min((out, steal), one_session(tmp_path_factory.mktemp("vcan")), key=lambda r: r[1])
+    (out / "host.txt").write_text(f"host CPU steal {steal:.0%} during the session")
     return out
+
+
+def host(session: Path) -> str:
+    return (session / "host.txt").read_text()
 
 
 def frames(path: Path, frame_id: int) -> list[can.Message]:
@@ -75,16 +77,18 @@ def test_player_reports_an_obstacle_stop_and_the_injected_fault(session):
 
 def test_monitor_exits_cleanly_and_saw_the_fault(session):
     monitor = json.loads((session / "monitor.json").read_text())
-    assert monitor["frames_received"] > 1000
-    assert monitor["frames_rejected"] == 0
-    assert monitor["faults_detected"].get("cycles_stale", 0) >= 10      # 2 s of silence, 100 ms cycles
+    player = json.loads((session / "player.json").read_text())
+    context = f"monitor {monitor}; player {player}; {host(session)}"
+    assert monitor["frames_received"] > 1000, context
+    assert monitor["frames_rejected"] == 0, context
+    assert monitor["faults_detected"].get("cycles_stale", 0) >= 10, context      # 2 s of silence, 100 ms cycles
 
 
 def test_recorded_brake_demands_decode_and_tell_the_story(session):
     msg = database().get_message_by_frame_id(BRAKE_DEMAND_ID)
     demands = frames(session / "bus.log", BRAKE_DEMAND_ID)
     levels = "".join(str(msg.decode(bytes(m.data), decode_choices=False)["Level"]) for m in demands)
-    context = f"{len(demands)} BrakeDemand frames, levels {levels}"
+    context = f"{len(demands)} BrakeDemand frames, levels {levels}; {host(session)}"
     assert len(demands) >= 200, context                                 # >= 20 s of 100 ms cycles
     assert all(check_profile2_crc(bytes(m.data), BRAKE_DEMAND_ID & 0xFF) for m in demands)
     decoded = [msg.decode(bytes(m.data), decode_choices=False) for m in demands]

@@ -29,10 +29,10 @@ def play(args: argparse.Namespace) -> int:
     bus = open_bus(bus_cfg)
     try:
         player = Player(bus, scen, args.period, wait_for_monitor=not args.no_wait)
-        play_loop(player, WallClock(), stop)
+        play_loop(player, WallClock(), stop, None if args.no_wait else round(args.wait_limit * 1000))
     finally:
         bus.shutdown()
-    summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent,
+    summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent, late_periods=player.late_periods,
                    faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
     output.summary(summary, args.json)
     return 0
@@ -43,7 +43,10 @@ def register(sub) -> None:
         "play",
         help="run the scenario player alone on a real bus (the monitor runs elsewhere)",
         description="Simulate the train and the six sensor channels of a scenario on a real bus, in real time. "
-                    "The train waits at the entry until the monitor reports NORMAL with no demand. A bus is "
+                    "The train waits at the entry until the monitor reports NORMAL with no demand (at most "
+                    "--wait-limit seconds, then exit 2). A player that wakes up late (a busy host) moves the "
+                    "train through the missed periods without sending them in a burst; their number is "
+                    "`late_periods` in the outcome. A bus is "
                     "required (--interface and --channel, or python-can's configuration): the in-process bus "
                     "is private to one process. Writes no files.",
         epilog=lambda: shipped_help("run"),
@@ -53,5 +56,8 @@ def register(sub) -> None:
     pl.add_argument("--period", type=options.positive_int, default=100, metavar="MS",
                     help="send period in ms (default: %(default)s)")
     pl.add_argument("--no-wait", action="store_true", help="start at once, do not wait for the monitor")
+    pl.add_argument("--wait-limit", type=options.positive_float, default=60.0, metavar="S",
+                    help="give up (exit 2) if the monitor has not reported NORMAL with no demand after S seconds "
+                         "(default: %(default)g)")
     options.add_json(pl, "print the outcome as one JSON object")
     pl.set_defaults(func=play)
