@@ -100,28 +100,46 @@ class RunResult:
     extra: dict = field(default_factory=dict)
 
 
+FAULT_REASONS = ("stale", "system_error", "perceptor", "deadline", "train_input")   # diagnostics, not the track
+FAULT_BITS = sum(1 << bit for bit, name in enumerate(REASON_NAMES) if name in FAULT_REASONS)
+
+
 def detected_faults(runner: MonitorRunner) -> dict:
     """What the monitor noticed: rejected frames by reason, and diagnostic reason bits."""
     seen = Counter()
     for rec in runner.records:
         for bit, name in enumerate(REASON_NAMES):
-            if rec.reasons & (1 << bit) and name in ("stale", "system_error", "perceptor", "deadline", "train_input"):
+            if rec.reasons & (1 << bit) and name in FAULT_REASONS:
                 seen[name] += 1
     out = {f"frames_{k}": v for k, v in sorted(runner.receiver.rejected.items()) if v}
     out.update({f"cycles_{k}": v for k, v in sorted(seen.items())})
     return out
 
 
+def changes_by_cause(records: list) -> dict:
+    """Demand changes split by what caused them: `faults` if the cycle before or after the change
+    carries a diagnostic reason (a stale channel, a system error, a missed deadline, ...), else
+    `encounter` (the table, the envelope, the track). The hysteresis target of issue 12 (at most
+    2 per encounter) is about the second; an injected fault adds its own on top."""
+    out = {"encounter": 0, "faults": 0}
+    for a, b in zip(records, records[1:]):
+        if a.demand != b.demand:
+            out["faults" if (a.reasons | b.reasons) & FAULT_BITS else "encounter"] += 1
+    return out
+
+
 def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Path], plot: Optional[Path],
               recorder_complete: bool = True) -> dict:
     levels = Counter(DEMAND_NAMES[r.demand] for r in runner.records)
-    changes = sum(1 for a, b in zip(runner.records, runner.records[1:]) if a.demand != b.demand)
+    by_cause = changes_by_cause(runner.records)
+    changes = sum(by_cause.values())
     summary = {
         "outcome": "monitor_only",
         "margin_m": None,
         "cycles": len(runner.records),
         "demands": {name: levels.get(name, 0) for name in DEMAND_NAMES},
         "demand_changes": changes,
+        "demand_changes_by_cause": by_cause,
         "init_cycles": sum(1 for r in runner.records if r.mode == 0),     # start-up: emergency until sensors are fresh
         "first_emergency_after_init_s": next((r.tick / 1000 for r in runner.records if r.demand == 2 and r.mode != 0),
                                              None),

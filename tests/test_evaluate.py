@@ -279,6 +279,7 @@ def test_m2_table_brakes_once_in_the_default_scenario(tmp_path):
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     assert d["table"] == "m2" and d["outcome"] == "stopped" and d["demand_changes"] <= 3, d
+    assert d["demand_changes_by_cause"] == {"encounter": 1, "faults": 2}, d["demand_changes_by_cause"]
     text = (ROOT / "monitor" / "scenarios" / "static-obstacle.toml").read_text(encoding="utf-8")
     assert "[[faults]]" in text
     calm = tmp_path / "static-obstacle-no-fault.toml"
@@ -287,3 +288,4 @@ def test_m2_table_brakes_once_in_the_default_scenario(tmp_path):
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     assert d["outcome"] == "stopped" and 1 <= d["demand_changes"] <= 2, d["demand_changes"]
+    assert d["demand_changes_by_cause"]["faults"] == 0, "no fault injected, none counted"
