@@ -24,7 +24,8 @@ The sandbox is a user-mode Linux: when its host is busy, the whole sandbox stops
 moment, monitor and bus alike. A heartbeat (cangen sending every 10 ms, a C program that
 does nothing else) shows such stalls; their time is not counted against the monitor's
 gaps; a session that stalled too much (or whose host's hypervisor took more than 10 % of the
-CPU) is run once more, and the quieter of the two is judged. Under CI=true a sandbox that cannot be set up is a failure, not a skip.
+CPU) is run once more, and the quieter of the two is judged. Under CI=true a sandbox that
+cannot be set up is a failure, not a skip.
 """
 from __future__ import annotations
 
@@ -173,11 +174,13 @@ class FloodRun:
     def stalled(self) -> float:
         return sum(b - a for a, b in self.stalls)
 
+    def span(self) -> float:
+        """Seconds from the monitor's first recorded demand to its last (0 with fewer than two)."""
+        return self.demands[-1].t - self.demands[0].t if len(self.demands) > 1 else 0.0
+
     def stalled_share(self) -> float:
         """Share of the monitor's sending time in which the whole sandbox stood still."""
-        if len(self.demands) < 2:
-            return 0.0
-        return self.stalled() / max(1e-9, self.demands[-1].t - self.demands[0].t)
+        return self.stalled() / self.span() if self.span() > 0 else 0.0
 
     def quiet(self) -> bool:
         """The sandbox ran steadily: little stalled time (the heartbeat) and little CPU taken by
@@ -191,8 +194,7 @@ class FloodRun:
         return MAX_GAP_MS / (1.0 - min(self.host_steal, 0.5))
 
     def stalled_text(self) -> str:
-        span = self.demands[-1].t - self.demands[0].t if len(self.demands) > 1 else 0.0
-        return (f"stood still {self.stalled():.1f} s of {span:.1f} s in {len(self.stalls)} stalls, "
+        return (f"stood still {self.stalled():.1f} s of {self.span():.1f} s in {len(self.stalls)} stalls, "
                 f"host CPU steal {self.host_steal:.0%}")
 
     def gaps(self, t0: float = float("-inf"), t1: float = float("inf")) -> list[tuple[float, float, float]]:

@@ -396,9 +396,10 @@ def test_a_late_player_moves_the_train_but_sends_no_burst():
             play_loop(player, clock, threading.Event())
             return player, sent_at
 
-    steady, steady_frames = play(StallingClock(None))
+    steady, _ = play(StallingClock(None))
     late, late_frames = play(StallingClock(1000))
     assert steady.late_periods == 0 and late.late_periods == 3
+    assert len(late_frames) == len(set(late_frames)), "a frame ID sent twice at one instant: a burst"
     state = [t for t, fid in late_frames if fid == TRAIN_STATE_ID]
     assert len(state) == len(steady.trace) - 3 == len(set(state)), "one TrainState per period, none in a burst"
     assert late.position == pytest.approx(steady.position) and late.position > 0
