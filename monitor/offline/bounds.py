@@ -234,6 +234,13 @@ class UpperBound:
     def values(self) -> np.ndarray:
         return np.array(self._values)
 
+    def over(self, beliefs, values) -> "UpperBound":
+        """The same corners and fast informed bound over other (belief, value) points."""
+        other = UpperBound(self.fib_q)
+        other.corner = self.corner.copy()
+        other._reset(list(beliefs), list(values))
+        return other
+
     def add(self, b: np.ndarray, value: float) -> bool:
         """Store (b, value) if it tightens the bound at b; a one-hot b tightens a corner."""
         now = float(self.value(b[None, :])[0])
