@@ -1,6 +1,6 @@
 """Where Model 2's certified gap comes from: the solver's own gap, and the table's class.
 
-Run: python benchmarks/bench_m2_gap.py [--budget S] [--variants NAME ...] [--json]
+Run: python benchmarks/bench_m2_gap.py [--budget S] [--variants NAME ...] [--closure N] [--write-table DIR] [--json]
 
 The shipped m2 table is certified against the sawtooth upper bound of the full model
 without the release cost, while the table is layered (monotone in the reported conditions)
@@ -24,6 +24,10 @@ Three more variants of `reduced` ask which model feature the solver's gap comes 
 - `reduced-kind-exact`: obstacle type and speed class reported without error.
 `--all-rows` evaluates the sawtooth at every successor of a backup (the solver's default
 leaves the unlikeliest 0.1 % of observation mass to the fast informed bound).
+`--write-table DIR` writes the `reduced-hysteresis` table as a table of the full model (its
+edges the same for every combination of reported conditions) to DIR/m2.table.rgt, for
+`railguard evaluate DIR/m2.table.rgt` (with `--budget 27`, the time split of a 60 s
+`railguard solve`; docs/models.md section 5 records how it fares).
 `--closure N` asks whether more upper-bound points would close the gap: after the solve, the
 sawtooth's Bellman operator is iterated to its fixed point over the solver's points, then N
 times the successors of every point (greedy action, probability over 1 %) join the set and
@@ -51,7 +55,7 @@ DIAGNOSTIC = {                       # variant -> Model2Params overrides (on the
 }
 
 
-def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0) -> dict:
+def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0, write_table: str = "") -> dict:
     """One variant's bounds, table and gaps; `all_rows` only labels the row (main sets the solver)."""
     from monitor.offline import pipeline, solver
     from monitor.offline.controller import ConditionLayer, compile_controller, reduced_model
@@ -73,6 +77,8 @@ def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0) ->
         comp = compile_controller(target, sol, max_nodes=plan.max_nodes, deadline=time.perf_counter() + budget)
         value, nodes, states = comp.value, comp.controller.nodes, target.shape[0]
     seconds = time.perf_counter() - t0          # solve and compile; each closure round reports its own
+    if write_table and variant == "reduced-hysteresis":
+        print(f"wrote {write_blind(model, plan, sol, comp, write_table)}", file=sys.stderr, flush=True)
     grown = closure(target, sol, closure_rounds) if closure_rounds and variant != "shipped" else []
     return {
         "variant": variant, "states": states, "all_rows": all_rows, "budget_s": budget,
@@ -82,6 +88,23 @@ def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0) ->
         "table_value": value, "nodes": nodes,
         "certified_gap_percent": pipeline.gap_percent(sol.upper_bound, value), "closure": grown,
     }
+
+
+def write_blind(model, plan, sol, comp, out_dir: str) -> Path:
+    """The conditions-blind table as a table of the full model (every combination of reported
+    conditions takes the edge of its base observation), valued exactly on the full model."""
+    from monitor.core import table as table_format
+    from monitor.offline import pipeline
+    from monitor.offline.controller import ConditionLayer, Controller, evaluate, value_at
+
+    layer, c = ConditionLayer.of(model.observations, plan.conditions), comp.controller
+    full = Controller(c.action, c.next[:, layer.base], c.start)
+    value = value_at(model, full, evaluate(model, full))
+    header = pipeline.table_header(model, plan, sol, replace(comp, controller=full, value=value))
+    path = Path(out_dir) / f"m2{pipeline.TABLE_SUFFIX}"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(table_format.encode(header, full.action.tolist(), full.next.tolist()))
+    return path
 
 
 def closure(model, sol, rounds: int, min_p: float = 0.01, top: int = 12) -> list[dict]:
@@ -181,6 +204,8 @@ def main() -> None:
     ap.add_argument("--closure", type=int, default=0, metavar="N",
                     help="after each solve, the upper bound's fixed point over the solver's points grown N times "
                          "by their likely successors (not for `shipped`)")
+    ap.add_argument("--write-table", default="", metavar="DIR",
+                    help="write the reduced-hysteresis table, for the full model, to DIR/m2.table.rgt")
     args = ap.parse_args()
     if args.all_rows:
         from monitor.offline import solver
@@ -190,7 +215,7 @@ def main() -> None:
             print("sawtooth at every successor of a backup (--all-rows)")
     rows = []
     for v in args.variants:
-        rows.append(run(v, args.budget, args.all_rows, args.closure))
+        rows.append(run(v, args.budget, args.all_rows, args.closure, args.write_table))
         if not args.json:
             r = rows[-1]
             print(f"{r['variant']:<20} {r['states']:>4} states  LB {r['lower_bound']:.4f}  UB {r['upper_bound']:.4f}  "
