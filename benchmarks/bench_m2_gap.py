@@ -92,7 +92,8 @@ def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0, wr
 
 def write_blind(model, plan, sol, comp, out_dir: str) -> Path:
     """The conditions-blind table as a table of the full model (every combination of reported
-    conditions takes the edge of its base observation), valued exactly on the full model."""
+    conditions takes the edge of its base observation), valued exactly on the full model; the
+    header's bounds are those of its class (the reduced model with the last demand in the state)."""
     from monitor.core import table as table_format
     from monitor.offline import pipeline
     from monitor.offline.controller import ConditionLayer, Controller, evaluate, value_at
@@ -207,6 +208,8 @@ def main() -> None:
     ap.add_argument("--write-table", default="", metavar="DIR",
                     help="write the reduced-hysteresis table, for the full model, to DIR/m2.table.rgt")
     args = ap.parse_args()
+    if args.write_table and "reduced-hysteresis" not in args.variants:
+        ap.error("--write-table writes the reduced-hysteresis table: add --variants reduced-hysteresis")
     if args.all_rows:
         from monitor.offline import solver
 
