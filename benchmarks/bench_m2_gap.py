@@ -120,7 +120,7 @@ def closure(model, sol, rounds: int, min_p: float = 0.01, top: int = 12) -> list
     from monitor.offline import bounds, pipeline
 
     dyn, ub, A = bounds.Dynamics(model), sol.upper, model.shape[1]
-    corner, fib_q = ub.corner, ub.fib_q
+    corner = ub.corner
     group = np.unique(["-".join(s.split("-")[:3]) for s in model.states], return_inverse=True)[1].ravel()
     n_groups = int(group.max()) + 1
 
@@ -139,9 +139,10 @@ def closure(model, sol, rounds: int, min_p: float = 0.01, top: int = 12) -> list
                 keep, drop = np.flatnonzero(p > 1e-7), np.flatnonzero((p <= 1e-7) & (p > 0))
                 succ.append(U[keep] / p[keep, None]); weight.append(p[keep]); owner.append(np.full(len(keep), n * A + a))
                 reward[n, a] = P[n] @ dyn.R[a]
-                rest[n * A + a] = np.minimum(U[drop] @ corner, (U[drop] @ fib_q.T).max(axis=1)).sum()
+                rest[n * A + a] = np.minimum(U[drop] @ corner, ub.fib(U[drop])).sum()
         succ, weight, owner = np.vstack(succ), np.concatenate(weight), np.concatenate(owner)
-        linear, base = np.minimum(succ @ corner, (succ @ fib_q.T).max(axis=1)), succ @ corner
+        base = succ @ corner
+        linear = np.minimum(base, ub.fib(succ))
         rows, cols, ratios = [], [], []
         pk, sk = likeliest(P), likeliest(succ)
         for key in np.unique(sk):
