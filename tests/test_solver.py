@@ -14,6 +14,7 @@ from monitor.offline.controller import (
     value_at,
 )
 from monitor.offline.models import Plan
+from monitor.offline.table_view import render
 from monitor.offline.params import ConfigError
 from monitor.offline.bounds import Dynamics, UpperBound, upper_backup
 from monitor.offline.solver import METHODS, SolverSettings, fast_informed_bound, solve
@@ -331,6 +332,17 @@ def test_model2_small_monotone_run_is_monotone_exact_and_within_budget(m2):
     assert comp.value <= result.solution.upper_bound + 1e-9
     t = table_format.decode(result.table, expect_model="m2")
     assert t.header["solver"]["monotone_in"] == [3, 4]
+    # the information relaxation ran (3 trials, like the model) and the tighter bound is printed
+    relaxed = t.header["relaxation"]
+    assert relaxed["reveals"] == "speed, type, track and brake read without error" and relaxed["iterations"] == 3
+    assert relaxed["model_upper_bound"] == result.solution.upper_bound
+    assert t.header["upper_bound"] == result.upper_bound == min(relaxed["upper_bound"], relaxed["model_upper_bound"])
+    fig = pipeline.figures(result)
+    assert (fig["upper_bound"], fig["relaxation_upper_bound"]) == (result.upper_bound, relaxed["upper_bound"])
+    assert comp.value <= result.upper_bound + 1e-9
+    shown = render(t).splitlines()
+    assert any(line.startswith("upper bound") and "information relaxation" in line for line in shown)
+    assert "information relaxation" in pipeline.summary_text(result)
     res = monotone_check(t)
     assert res.monotone, res.describe()
     # one node per reported (track, brake) combination is the least the layering needs

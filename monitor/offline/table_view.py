@@ -38,6 +38,11 @@ def render(table: Table, max_observations: int = 6) -> str:
     for key, label in (("controller_value", "controller value"), ("lower_bound", "lower bound"), ("upper_bound", "upper bound")):
         if key in h:
             lines.append(f"{label:<16} {h[key]:.4f}")
+    relaxed = h.get("relaxation")
+    if isinstance(relaxed, dict) and "upper_bound" in h:
+        lines[-1] += (f"   (the smaller of the model's own sawtooth, {relaxed.get('model_upper_bound', float('nan')):.4f}, "
+                      f"and an information relaxation's, {relaxed.get('reveals', '?')}: "
+                      f"{relaxed.get('upper_bound', float('nan')):.4f})")
     if "params" in h:
         lines.append("parameters       " + ", ".join(f"{k}={v}" for k, v in h["params"].items()))
     lines.append("")

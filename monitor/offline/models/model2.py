@@ -10,11 +10,12 @@ misperception of eq. 9, the reward eq. 10 as printed ("paper") or our corrected 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..pomdp import POMDP, ModelError
+from ..relaxation import Relaxation
 from ..risk import risk_category, risk_score
 from .zones import (ZONE_SOURCES, boundary_deceleration, crossing_probabilities, margin_step, monitor_zones,
                     paper_margin_step, paper_slope)
@@ -27,6 +28,7 @@ BRAKE = ("normal", "degraded")
 COMPONENTS = (DISTANCE, REL_SPEED, OBSTACLE, TRACK, BRAKE)
 ACTIONS = ("maintain", "nominal_braking", "emergency_braking")
 CONDITIONS = (3, 4)  # track and brake: reported adverse, they must never lower the demand
+REVEALED = (1, 2, 3, 4)  # the information relaxation's bound reads all but the distance without error
 DIMS = tuple(len(c) for c in COMPONENTS)
 
 # Eq. 10 as printed: a reward only where the printed case applies, 0 elsewhere.
@@ -298,3 +300,20 @@ def build(p: Model2Params = Model2Params()) -> POMDP:
         params=as_dict(p),
         release_cost=p.release_cost,
     )
+
+
+def relaxation(model: POMDP) -> Relaxation:
+    """The model with speed, type, track and brake read without error (REVEALED): its optimum
+    bounds the model's from above (relaxation.py), and its sawtooth gets far lower in the
+    same seconds, because its beliefs spread over the four distance levels only.
+
+    The model's observation is the relaxed one passed through the revealed components'
+    confusions: G = I (distance) x C_speed x C_type x C_track x C_brake."""
+    from ..params import override
+
+    p = override(Model2Params(), model.params)
+    eps = p.misperception
+    sharp = replace(p, misperception=tuple(0.0 if i in REVEALED else e for i, e in enumerate(eps)))
+    noise = replace(p, misperception=tuple(e if i in REVEALED else 0.0 for i, e in enumerate(eps)))
+    relaxed = replace(build(sharp), release_cost=model.release_cost)
+    return Relaxation(relaxed, observation(noise)[0], "speed, type, track and brake read without error")
