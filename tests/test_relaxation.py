@@ -85,7 +85,7 @@ def test_model2_relaxed_bound_is_valid_and_tighter_than_the_model_own(m2):
 def test_no_relaxation_is_started_without_time_left(m2):
     model, plan = m2
     said: list[str] = []
-    assert pipeline.relaxed_bound(model, plan, time.perf_counter() + 0.5, said.append) is None
+    assert pipeline.relaxed_bound(model2.relaxation(model), plan, time.perf_counter() + 0.5, said.append) is None
     assert said and "no time left" in said[0]
 
 

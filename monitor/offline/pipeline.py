@@ -15,6 +15,7 @@ from . import pomdp_file
 from .controller import Compiled, ConditionLayer, compile_controller, compile_monotone, reduced_model
 from .models import Plan
 from .pomdp import POMDP
+from .relaxation import Relaxation, describe_upper
 from .solver import Progress, Solution, solve
 
 TABLE_SUFFIX = ".table.rgt"
@@ -63,6 +64,11 @@ class RelaxedBound:
     upper_bound: float
     iterations: int
 
+    def entry(self, model_upper: float) -> dict:
+        """The table header's `relaxation` entry, beside the model's own bound."""
+        return {"reveals": self.reveals, "upper_bound": self.upper_bound, "iterations": self.iterations,
+                "model_upper_bound": model_upper}
+
 
 def certified_upper(sol: Solution, relaxed: Optional[RelaxedBound]) -> float:
     """The tightest upper bound on the model's optimum at b0 that the run holds."""
@@ -85,9 +91,7 @@ def model_digest(model: POMDP) -> str:
 def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled,
                  relaxed: Optional[RelaxedBound] = None) -> dict:
     """Everything a reader needs to trust and interpret the table; nothing time-dependent."""
-    extra = {} if relaxed is None else {"relaxation": {"reveals": relaxed.reveals, "upper_bound": relaxed.upper_bound,
-                                                       "iterations": relaxed.iterations,
-                                                       "model_upper_bound": sol.upper_bound}}
+    extra = {} if relaxed is None else {"relaxation": relaxed.entry(sol.upper_bound)}
     return {
         "format": "railguard-table",
         "railguard_version": __version__,
@@ -139,6 +143,9 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     budget = plan.settings.time_budget_s
     say = compile_progress or (lambda text: None)
     deadline = start + COMPILE_SHARE * budget
+    relax = plan.relaxation(model) if plan.relaxation else None
+    if relax is not None:
+        relax.check(model)            # before any solving: a bad relaxation must not cost the run
     if plan.conditions:
         layer = ConditionLayer.of(model.observations, plan.conditions)
         say("base: solving the model with the conditions unobserved")
@@ -150,21 +157,19 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     else:
         sol = solve(model, plan.settings, progress, deadline=start + SOLVE_SHARE * budget)
         comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress, deadline=deadline)
-    relaxed = relaxed_bound(model, plan, start + RELAX_SHARE * budget, say) if plan.relaxation else None
+    relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
     ctrl = comp.controller
     data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist())
     return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed)
 
 
-def relaxed_bound(model: POMDP, plan: Plan, deadline: float, say: Callable[[str], None]) -> Optional[RelaxedBound]:
-    """Solve the plan's information relaxation until `deadline` for its upper bound at b0;
-    None when too little time is left. The relaxation is checked to be one first."""
+def relaxed_bound(relax: Relaxation, plan: Plan, deadline: float, say: Callable[[str], None]) -> Optional[RelaxedBound]:
+    """Solve a checked information relaxation until `deadline` for its upper bound at b0;
+    None when too little time is left."""
     left = deadline - time.perf_counter()
     if left < MIN_RELAX_S:
         say(f"upper bound: no time left for the information relaxation ({left:.1f} s)")
         return None
-    relax = plan.relaxation(model)
-    relax.check(model)
     say(f"upper bound: solving the information relaxation ({relax.label}) for {left:.0f} s")
 
     def tick(p: Progress) -> None:
@@ -235,25 +240,15 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def upper_source(result: Result) -> str:
-    """Where the printed upper bound comes from, in words."""
-    r, own = result.relaxed, result.solution.upper_bound
-    if r is None:
-        return "sawtooth upper bound at the start belief"
-    if r.upper_bound < own:
-        return f"information relaxation, {r.reveals}, {r.iterations} iterations; the model's own sawtooth: {own:.4f}"
-    return f"sawtooth upper bound at the start belief; the information relaxation's: {r.upper_bound:.4f}"
-
-
 def summary_text(result: Result) -> str:
-    f = figures(result)
+    f, own = figures(result), result.solution.upper_bound
     gap_to_ub = f["upper_bound"] - f["controller_value"]
     lines = [
         f"model            {f['model']}  ({f['states']} states, {f['actions']} actions, {f['observations']} observations)",
         f"solver           {result.plan.settings.method}, {f['iterations']} iterations, stopped on {f['stop_reason']}, "
         f"{f['seconds']:.1f} s (solve + compile, budget {f['time_budget_s']:g} s), peak memory {f['peak_rss_mb']:.0f} MB",
         f"lower bound      {f['lower_bound']:.4f}   (alpha vectors at the start belief)",
-        f"upper bound      {f['upper_bound']:.4f}   ({upper_source(result)})",
+        f"upper bound      {f['upper_bound']:.4f}   ({describe_upper(own, result.relaxed and result.relaxed.entry(own))})",
         f"controller value {f['controller_value']:.4f}   (exact, {f['nodes']} nodes; witness-following before improvement: {f['naive_controller_value']:.4f})",
         f"remaining gap    {gap_to_ub:.4f}   (upper bound - controller value: {f['certified_gap_percent']:.2f} % of |upper bound|;"
         " the table is within this of the optimum)",

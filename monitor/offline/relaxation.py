@@ -15,6 +15,7 @@ garbling on the arrays themselves, so a relaxation that observes *less* is refus
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping, Optional
 
 import numpy as np
 
@@ -50,3 +51,14 @@ class Relaxation:
         if worst > TOLERANCE:
             raise ModelError(f"{where}: the model's observation is not the relaxed one garbled "
                              f"(off by {worst:.3g}): it would not be an upper bound")
+
+
+def describe_upper(own: float, entry: Optional[Mapping]) -> str:
+    """Where a printed upper bound comes from, in words: the model's own sawtooth (`own`), or
+    the relaxation recorded in a table header's `relaxation` entry where that is lower."""
+    if entry is None:
+        return "sawtooth upper bound at the start belief"
+    if entry["upper_bound"] < own:
+        return (f"information relaxation, {entry['reveals']}, {entry['iterations']} iterations; "
+                f"the model's own sawtooth: {own:.4f}")
+    return f"sawtooth upper bound at the start belief; the information relaxation's: {entry['upper_bound']:.4f}"

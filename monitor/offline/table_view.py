@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.table import Table, TableError, decode
+from .relaxation import describe_upper
 
 
 def read(path: str | Path, expect_model: str | None = None) -> Table:
@@ -38,11 +39,8 @@ def render(table: Table, max_observations: int = 6) -> str:
     for key, label in (("controller_value", "controller value"), ("lower_bound", "lower bound"), ("upper_bound", "upper bound")):
         if key in h:
             lines.append(f"{label:<16} {h[key]:.4f}")
-    relaxed = h.get("relaxation")
-    if isinstance(relaxed, dict) and "upper_bound" in h:
-        lines[-1] += (f"   (the smaller of the model's own sawtooth, {relaxed.get('model_upper_bound', float('nan')):.4f}, "
-                      f"and an information relaxation's, {relaxed.get('reveals', '?')}: "
-                      f"{relaxed.get('upper_bound', float('nan')):.4f})")
+    if "relaxation" in h and "upper_bound" in h:
+        lines[-1] += f"   ({describe_upper(h['relaxation']['model_upper_bound'], h['relaxation'])})"
     if "params" in h:
         lines.append("parameters       " + ", ".join(f"{k}={v}" for k, v in h["params"].items()))
     lines.append("")
