@@ -64,7 +64,8 @@ DIAGNOSTIC = {                       # variant -> Model2Params overrides (on the
 def run(variant: str, budget: float, all_rows: bool, closure_rounds: int = 0, write_table: str = "") -> dict:
     """One variant's bounds, table and gaps; `all_rows` only labels the row (main sets the solver)."""
     from monitor.offline import pipeline, solver
-    from monitor.offline.controller import ConditionLayer, compile_controller, reduced_model
+    from monitor.offline.controller import compile_controller
+    from monitor.offline.layered import ConditionLayer, reduced_model
     from monitor.offline.hysteresis import with_last_demand
     from monitor.offline.models import MODELS
     from monitor.offline.params import override
@@ -118,7 +119,8 @@ def write_blind(model, plan, sol, comp, out_dir: str) -> Path:
     header's bounds are those of its class (the reduced model with the last demand in the state)."""
     from monitor.core import table as table_format
     from monitor.offline import pipeline
-    from monitor.offline.controller import ConditionLayer, Controller, evaluate, value_at
+    from monitor.offline.controller import Controller, evaluate, value_at
+    from monitor.offline.layered import ConditionLayer
 
     layer, c = ConditionLayer.of(model.observations, plan.conditions), comp.controller
     full = Controller(c.action, c.next[:, layer.base], c.start)

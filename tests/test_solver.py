@@ -9,10 +9,11 @@ import pytest
 from conftest import independent_values
 from monitor.core import table as table_format
 from monitor.offline import pipeline
-from monitor.offline.controller import (
-    ConditionLayer, Controller, compile_controller, compile_monotone, evaluate, minimise, raise_monotone, reachable,
-    value_at,
+from monitor.offline.controller import Controller, evaluate, minimise, occupancy, reachable, value_at
+from monitor.offline.layered import (
+    ConditionLayer, Layered, action_values, compile_monotone, edge_values, fixed_edge_q, improve_layered, raise_monotone,
 )
+from monitor.offline.hysteresis import with_last_demand
 from monitor.offline.models import Plan
 from monitor.offline.table_view import render
 from monitor.offline.params import ConfigError
@@ -349,6 +350,89 @@ def test_model2_small_monotone_run_is_monotone_exact_and_within_budget(m2):
     layer = ConditionLayer.of(model.observations, plan.conditions)
     with pytest.raises(ConfigError, match="at least 4"):
         compile_monotone(model, result.solution, layer, max_nodes=3)
+
+
+def random_layered(model, plan, bases: int, seed: int) -> Layered:
+    """A layered controller of m2 with random base edges and random actions raised to monotone."""
+    layer = ConditionLayer.of(model.observations, plan.conditions)
+    rng = np.random.default_rng(seed)
+    action = raise_monotone(rng.integers(0, 3, bases * layer.memories), layer)
+    return Layered(layer, rng.integers(0, bases, (bases, layer.bases)), action, 0)
+
+
+def test_layered_gains_are_exact_on_the_model_with_the_last_demand_in_the_state(m2):
+    """action_values and edge_values, computed on m2 with the release cost charged on the
+    edges, equal the same quantities on with_last_demand(m2), where the cost is part of the
+    reward: there V_h[n, (p, s)] = V[n, s] - cost * (a_n < p), a node's action value is its
+    plain one-step value, and an edge's worth is the value of the mass it sends."""
+    model, plan = m2
+    assert model.release_cost > 0
+    lay = random_layered(model, plan, bases=3, seed=5)
+    ctrl, S, A = lay.controller, model.shape[0], model.shape[1]
+    hyst = with_last_demand(model)
+    V, Vh = evaluate(model, ctrl), evaluate(hyst, ctrl)
+    x, xh = occupancy(model, ctrl, iterations=700), occupancy(hyst, ctrl, iterations=700)
+    lower = ctrl.action[:, None] < np.arange(A)[None, :]                                  # (N, p): a_n < p
+    assert np.allclose(Vh.reshape(-1, A, S), V[:, None, :] - model.release_cost * lower[:, :, None], atol=1e-9)
+    assert np.allclose(xh.reshape(-1, A, S).sum(axis=1), x, atol=1e-12)
+    seen = x.sum(axis=1) > 1e-6
+    assert seen.sum() >= 4
+    q = action_values(model, ctrl, V, x)
+    qh = fixed_edge_q(hyst, ctrl, Vh, xh / xh.sum(axis=1, keepdims=True).clip(1e-300))
+    assert np.allclose(q[seen], qh[seen], rtol=1e-9, atol=1e-9)
+    # the arriving release cost matters: without it the values differ
+    plain = fixed_edge_q(model, ctrl, V, x / x.sum(axis=1, keepdims=True).clip(1e-300))
+    assert np.abs(plain[seen] - qh[seen]).max() > 1e-3
+    # edges: worth[m, b, m2] on the hysteresis model, written out per node and observation
+    worth = edge_values(model, lay, V, x)
+    Q, layer = lay.layer.memories, lay.layer
+    expect = np.zeros_like(worth)
+    for n in range(ctrl.nodes):
+        a, (m, mem) = int(ctrl.action[n]), divmod(n, Q)
+        after = (xh[n] @ hyst.T[a])[:, None] * hyst.O[a]
+        for o in range(model.shape[2]):
+            targets = np.arange(lay.edges.shape[0]) * Q + layer.step[mem, o]
+            expect[m, layer.base[o]] += Vh[targets] @ after[:, o]
+    assert np.allclose(worth, expect, rtol=1e-9, atol=1e-12)
+
+
+def test_layered_improvement_raises_the_exact_value_and_keeps_the_layering(m2):
+    """From a random layered controller, improve_layered raises the exact value at b0, only
+    ever keeps monotone actions, and leaves edges shared by every memory of a base node."""
+    model, plan = m2
+    lay = random_layered(model, plan, bases=4, seed=7)
+    before = value_at(model, lay.controller, evaluate(model, lay.controller))
+    lines = []
+    better, rounds = improve_layered(model, lay, rounds=3, say=lines.append, deadline=None)
+    after = value_at(model, better.controller, evaluate(model, better.controller))
+    assert after > before + 1.0 and rounds >= 1 and lines[0].startswith("monotone: round 1, ")
+    assert np.array_equal(better.action, raise_monotone(better.action, lay.layer))
+    assert better.edges.shape == lay.edges.shape
+    t = table_format.encode({"format": "railguard-table", "model": model.name, "states": list(model.states),
+                             "actions": list(model.actions), "observations": list(model.observations),
+                             "start": better.start}, better.controller.action.tolist(), better.controller.next.tolist())
+    assert monotone_check(table_format.decode(t)).monotone
+
+
+def test_model2_exact_layered_search_is_monotone_exact_and_recorded(m2):
+    """`layered_search = "exact"` (railguard solve --layered-search exact): the memory is
+    solved with the last demand in the state, the table stays monotone, its exact value is
+    at least the layered base's, and the header records the search; a bad value is refused."""
+    from monitor.offline.models import plan_from
+
+    model, plan = m2
+    small = replace(plan_from({"solver": {"layered_search": "exact"}}, plan),
+                    settings=replace(plan.settings, max_iterations=3, max_beliefs=20, expand_every=1), max_nodes=16)
+    assert small.layered_search == "exact"
+    result = pipeline.run(model, small)
+    comp = result.compiled
+    assert comp.controller.nodes <= 16 and comp.value >= comp.naive_value - 1e-9
+    assert comp.value == pytest.approx(value_at_start(model, comp.controller), abs=1e-9)
+    t = table_format.decode(result.table, expect_model="m2")
+    assert t.header["solver"]["layered_search"] == "exact"
+    assert monotone_check(t).monotone
+    with pytest.raises(ConfigError, match="layered_search must be one of actions, exact, got 'best'"):
+        plan_from({"solver": {"layered_search": "best"}}, plan)
 
 
 # ------------------------------------------------------------------ sawtooth upper bound (issue 12)

@@ -150,12 +150,13 @@ def _by_action(model: POMDP, ctrl: Controller, X: np.ndarray, transpose: bool) -
     return out
 
 
-def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12) -> np.ndarray:
+def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12, guess: Optional[np.ndarray] = None) -> np.ndarray:
     """Exact values V[n, s]: the solution of (I - g P) v = r.
 
     Small systems use a sparse LU; large ones GMRES on the operator v -> (I - g P) v applied
     without forming P (for Model 2, P has tens of millions of non-zeros). The residual is
     checked either way, so a returned value solves the system to 1e-8 of the reward scale.
+    `guess` (N, S), the values of a controller that differs little, starts GMRES near the answer.
     """
     S = model.shape[0]
     N = ctrl.nodes
@@ -174,7 +175,8 @@ def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12) -> np.ndarray:
             return v - g * _by_action(model, ctrl, W, transpose=True).ravel()
 
         M = spla.LinearOperator((N * S, N * S), matvec=apply, dtype=np.float64)
-        v, _ = spla.gmres(M, r, rtol=tol, atol=0.0, restart=200, maxiter=50)
+        x0 = None if guess is None else guess.ravel()
+        v, _ = spla.gmres(M, r, x0=x0, rtol=tol, atol=0.0, restart=200, maxiter=50)
     scale = max(1.0, float(np.abs(r).max()))
     residual = float(np.abs(M @ v - r).max())
     if not residual <= 1e-8 * scale:
@@ -186,24 +188,28 @@ def value_at(model: POMDP, ctrl: Controller, V: np.ndarray) -> float:
     return float(V[ctrl.start] @ model.b0)
 
 
-def occupancy(model: POMDP, ctrl: Controller, iterations: int = 80) -> np.ndarray:
+def occupancy(model: POMDP, ctrl: Controller, iterations: int = 80, guess: Optional[np.ndarray] = None) -> np.ndarray:
     """Discounted expected visits x[n, s] of (node, state) from (start, b0): x = e + g P^T x.
 
     Used to rank nodes and to find the belief a node is really visited with, so a truncated
     iteration (relative error g^iterations, 1.6 % for Model 1's and 2's g = 0.95) is enough.
+    From `guess` (the visits of a controller that differs little) it stops once no entry
+    moves by 1e-4 of the largest.
     """
     S = model.shape[0]
     N = ctrl.nodes
     E = EdgeWeights.of(model, ctrl)
     e = np.zeros((N, S))
     e[ctrl.start] = model.b0
-    x = e.copy()
+    x = e.copy() if guess is None else guess
     targets = E.dst[E.by_dst][E.dst_starts]
     for _ in range(iterations):
         Y = _by_action(model, ctrl, x, transpose=False)           # mass after moving, (N, S')
         flow = (Y[E.src] * E.w)[E.by_dst]
-        x = e.copy()
+        last, x = x, e.copy()
         x[targets] += model.discount * np.add.reduceat(flow, E.dst_starts, axis=0)
+        if guess is not None and np.abs(x - last).max() <= 1e-4 * np.abs(x).max():
+            break
     return x
 
 
@@ -412,175 +418,3 @@ def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds
     value, ctrl, V = best
     say(f"compile: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
     return Compiled(replace(ctrl, beliefs=None), V, value, naive_value, done)
-
-
-# ----------------------------------------------------------------------------- monotone in conditions
-
-@dataclass(frozen=True)
-class ConditionLayer:
-    """Observations split into a base part and reported conditions (Model 2: track, brake),
-    and the memory a layered controller keeps of the conditions: the newest report.
-
-    `base[o]` is the column of o's base part; memory q is a combination of conditions (bit
-    k set: condition k adverse), `step[q, o]` the memory after observing o (o's combination),
-    `below[q, q2]` says every condition adverse in q is adverse in q2 as well.
-    """
-
-    base: np.ndarray    # (Z,) column of the observation's base part, 0..B-1
-    step: np.ndarray    # (Q, Z) memory after the observation
-    below: np.ndarray   # (Q, Q) bool
-
-    @property
-    def memories(self) -> int:
-        return int(self.below.shape[0])
-
-    @property
-    def bases(self) -> int:
-        return int(self.base.max()) + 1
-
-    @staticmethod
-    def of(observations: tuple[str, ...], positions: tuple[int, ...]) -> "ConditionLayer":
-        """From observation names joined with `-`: the components at `positions` are two-level
-        conditions, the level of the first observation being the normal one."""
-        parts = [name.split("-") for name in observations]
-        if any(len({p[i] for p in parts}) != 2 for i in positions):
-            raise ValueError("a condition component must have exactly two levels")
-        bits = 1 << np.arange(len(positions))[::-1]
-        combo = np.array([[p[i] != parts[0][i] for i in positions] for p in parts]) @ bits   # (Z,)
-        keys = ["-".join(x for k, x in enumerate(p) if k not in positions) for p in parts]
-        base = np.unique(keys, return_inverse=True)[1].ravel().astype(np.int64)
-        q = np.arange(1 << len(positions))
-        below = (q[:, None] & ~q[None, :]) == 0
-        return ConditionLayer(base, np.tile(combo.astype(np.int64), (len(q), 1)), below)
-
-
-def reduced_model(model: POMDP, layer: ConditionLayer) -> POMDP:
-    """The model with the conditions unobserved: observation = the base part only."""
-    O = np.zeros((model.shape[1], model.shape[0], layer.bases))
-    np.add.at(O.transpose(2, 0, 1), layer.base, model.O.transpose(2, 0, 1))
-    first = np.unique(layer.base, return_index=True)[1]
-    return POMDP(model.name, model.states, model.actions, tuple(model.observations[o] for o in first), model.T, O,
-                 model.R, model.discount, model.b0, model.params, release_cost=model.release_cost)
-
-
-def layered(base: Controller, layer: ConditionLayer, action: np.ndarray) -> Controller:
-    """Node (m, q) = m * Q + q: base node m moving on the base part of each observation
-    only, and condition memory q. Two runs whose reports differ only by conditions raised on
-    the second are always in (m, q) and (m, q2) with q below q2."""
-    Q = layer.memories
-    nxt = base.next[:, layer.base][:, None, :] * Q + layer.step[None, :, :]      # (M, Q, Z)
-    return Controller(action.astype(np.int64), nxt.reshape(-1, nxt.shape[2]), base.start * Q)
-
-
-def raise_monotone(action: np.ndarray, layer: ConditionLayer) -> np.ndarray:
-    """Each (m, q) demands at least what any (m, q') with q' below q demands."""
-    A = action.reshape(-1, layer.memories)
-    return np.max(np.where(layer.below.T[None, :, :], A[:, None, :], -1), axis=2).ravel()
-
-
-def fixed_edge_q(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndarray) -> np.ndarray:
-    """q[n, a]: at node n's belief, act a now and then follow n's own edges (values V)."""
-    S, A, Z = model.shape
-    q = np.zeros((ctrl.nodes, A))
-    for a in range(A):
-        W = np.einsum("so,nos->ns", model.O[a], V[ctrl.next])    # (N, S'): value after o, weighted
-        if model.release_cost:
-            changes = (ctrl.action[ctrl.next] < a).astype(float)                   # (N, Z)
-            W = W - model.release_cost * changes @ model.O[a].T                     # (N, S')
-        q[:, a] = beliefs @ model.R[:, a] + model.discount * np.einsum("ns,ns->n", beliefs @ model.T[a], W)
-    return q
-
-
-def beliefs_or(model: POMDP, ctrl: Controller, fallback: np.ndarray) -> np.ndarray:
-    """node_beliefs, with the `fallback` row for every node never visited."""
-    beliefs, mass = node_beliefs(model, ctrl)
-    return np.where(mass[:, None] > 1e-9, beliefs, fallback)
-
-
-def best_actions(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndarray,
-                 layer: ConditionLayer) -> Controller:
-    """Each node's best action with its edges fixed (ties to the stronger braking), raised to monotone."""
-    q = fixed_edge_q(model, ctrl, V, beliefs)
-    tol = 1e-12 * np.maximum(1.0, np.abs(q).max(axis=1, keepdims=True))
-    pick = np.where(q >= q.max(axis=1, keepdims=True) - tol, np.arange(q.shape[1])[None, :], -1).max(axis=1)
-    return replace(ctrl, action=raise_monotone(pick, layer))
-
-
-def with_best_start(model: POMDP, ctrl: Controller, V: np.ndarray) -> Controller:
-    return replace(ctrl, start=int((V @ model.b0).argmax()))
-
-
-def compile_monotone(model: POMDP, sol: Solution, layer: ConditionLayer, max_nodes: int = 255, rounds: int = 12,
-                     progress: Optional[Callable[[str], None]] = None, deadline: Optional[float] = None) -> Compiled:
-    """A controller whose demand never falls when conditions are reported adverse.
-
-    1. compile the base controller on the model with the conditions unobserved, from `sol`,
-       the solution of that reduced model (reduced_model: its alpha vectors are the ones
-       whose witnesses the base follows);
-    2. layer it: node (m, q) moves like m on the base part and keeps the condition memory q;
-    3. improve the actions, keeping the layering: each (m, q) takes its best action at the
-       belief it is visited with, raised to the largest action of any (m, q') with q' below
-       q; a round is kept only if the exact value at b0 rises; then merge bisimilar nodes.
-
-    The base gets max_nodes // 2 nodes first (merging usually leaves far fewer than
-    base x Q); if the result is still over budget, max_nodes // Q, which always fits.
-    """
-    from .params import ConfigError
-
-    say = progress or (lambda text: None)
-    Q = layer.memories
-    if max_nodes < Q:
-        raise ConfigError(f"max_nodes must be at least {Q} to keep the demand monotone in the conditions, "
-                          f"got {max_nodes}")
-    comp = layered_compile(model, sol, layer, max_nodes // 2, rounds, say, deadline)
-    if comp.controller.nodes > max_nodes:
-        say(f"monotone: {comp.controller.nodes} nodes are over the budget of {max_nodes}, base budget lowered")
-        comp = layered_compile(model, sol, layer, max_nodes // Q, rounds, say, deadline)   # base x Q <= max_nodes
-    return comp
-
-
-def layered_compile(model: POMDP, sol: Solution, layer: ConditionLayer, base_nodes: int, rounds: int,
-                    say: Callable[[str], None], deadline: Optional[float] = None) -> Compiled:
-    """compile_monotone with a base of at most `base_nodes` nodes."""
-    Q = layer.memories
-    reduced = reduced_model(model, layer)
-    # the base's own improvement rounds buy little once layered (m2: -2.084 against -2.113
-    # without them) and cost a third of the compile time: the layered rounds below do the work
-    base = compile_controller(reduced, sol, max_nodes=base_nodes, rounds=0,
-                              progress=lambda text: say(f"base {text}"), deadline=deadline)
-    M = base.controller.nodes
-    ctrl = layered(base.controller, layer, np.repeat(base.controller.action, Q))
-    # nodes never visited: the base node's belief, weighted by how likely each state reports q
-    reports_q = (layer.step == np.arange(Q)[:, None]).astype(float) @ model.O[0].T        # (Q, S)
-    fallback = (np.repeat(beliefs_or(reduced, base.controller, np.tile(model.b0, (M, 1))), Q, axis=0)
-                * np.tile(reports_q, (M, 1)))
-    fallback /= np.maximum(fallback.sum(axis=1, keepdims=True), 1e-300)
-    V = evaluate(model, ctrl)
-    ctrl = with_best_start(model, ctrl, V)
-    best = (value_at(model, ctrl, V), ctrl, V)
-    say(f"monotone: layered {M} x {Q} nodes, exact value {best[0]:.4f}")
-    done = 0
-    for done in range(1, rounds + 1):
-        if done > 1 and out_of_time(deadline):    # the first round always runs: it makes the layered table
-            say(f"monotone: time budget reached, stopping before round {done}")
-            done -= 1
-            break
-        ctrl, V = best[1], best[2]
-        cand = best_actions(model, ctrl, V, beliefs_or(model, ctrl, fallback), layer)
-        if np.array_equal(cand.action, ctrl.action):
-            break
-        cand_V = evaluate(model, cand)
-        cand = with_best_start(model, cand, cand_V)
-        value = value_at(model, cand, cand_V)
-        gained = value > best[0] + 1e-9 * max(1.0, abs(best[0]))
-        say(f"monotone: round {done}, {int((cand.action != ctrl.action).sum())} actions changed, "
-            f"exact value {value:.4f}" + ("" if gained else " (no gain, stop)"))
-        if not gained:
-            break
-        best = (value, cand, cand_V)
-    ctrl = minimise(best[1])
-    V = evaluate(model, ctrl)
-    value = value_at(model, ctrl, V)
-    say(f"monotone: final controller, {ctrl.nodes} nodes, exact value {value:.4f}")
-    return Compiled(ctrl, V, value, base.naive_value, base.improvement_rounds + done)
-

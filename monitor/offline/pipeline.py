@@ -12,7 +12,8 @@ import numpy as np
 from .. import __version__
 from ..core import table as table_format
 from . import pomdp_file
-from .controller import Compiled, ConditionLayer, compile_controller, compile_monotone, reduced_model
+from .controller import Compiled, compile_controller
+from .layered import ConditionLayer, base_model, compile_monotone
 from .models import Plan
 from .pomdp import POMDP
 from .relaxation import Relaxation, describe_upper
@@ -111,7 +112,7 @@ def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled,
         "solver": {
             **asdict(plan.settings),
             "max_nodes": plan.max_nodes,
-            **({"monotone_in": list(plan.conditions)} if plan.conditions else {}),
+            **({"monotone_in": list(plan.conditions), "layered_search": plan.layered_search} if plan.conditions else {}),
             "iterations": sol.iterations,
             "stop_reason": sol.stop_reason,
             "alpha_vectors": int(len(sol.alphas)),
@@ -124,6 +125,8 @@ COMPILE_SHARE = 0.9
 BASE_SHARE = 0.25     # with conditions: the conditions-blind base model's solve; the full model's
                       # (its bounds certify the table) runs on to SOLVE_SHARE
 RELAX_SHARE = 0.95    # with a relaxation: its solve uses what compilation left, up to this
+RELAXED_COMPILE_SHARE = 0.6   # with a relaxation, compilation starts no round after this: m2's
+                              # "exact" search gains about 0.001 per 6 s round late on, the bound 0.01 in 15 s
 MIN_RELAX_S = 2.0     # fewer seconds left than this: the relaxation is not started
 
 
@@ -134,7 +137,7 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     COMPILE_SHARE (the round under way and the final exact evaluation still finish).
 
     A table that must be monotone in reported conditions (plan.conditions) is built on a
-    memory that does not see them (controller.compile_monotone). That memory comes from
+    memory that does not see them (layered.compile_monotone). That memory comes from
     solving the model with the conditions unobserved, up to BASE_SHARE: following the full
     model's alpha vectors on beliefs that cannot see the conditions lost half the value
     (Model 2: -1.29 against -0.68 at the same weights). The full model is solved after it,
@@ -142,18 +145,18 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     start = time.perf_counter()
     budget = plan.settings.time_budget_s
     say = compile_progress or (lambda text: None)
-    deadline = start + COMPILE_SHARE * budget
     relax = plan.relaxation(model) if plan.relaxation else None
+    deadline = start + (RELAXED_COMPILE_SHARE if relax is not None else COMPILE_SHARE) * budget
     if relax is not None:
         relax.check(model)            # before any solving: a bad relaxation must not cost the run
     if plan.conditions:
         layer = ConditionLayer.of(model.observations, plan.conditions)
         say("base: solving the model with the conditions unobserved")
-        base_sol = solve(reduced_model(model, layer), plan.settings, progress, deadline=start + BASE_SHARE * budget)
+        base_sol = solve(base_model(model, layer, plan.layered_search), plan.settings, progress, deadline=start + BASE_SHARE * budget)
         say("solving the full model (its bounds certify the table)")
         sol = solve(model, plan.settings, progress, deadline=start + SOLVE_SHARE * budget)
         comp = compile_monotone(model, base_sol, layer, max_nodes=plan.max_nodes, progress=compile_progress,
-                                deadline=deadline)
+                                deadline=deadline, search=plan.layered_search)
     else:
         sol = solve(model, plan.settings, progress, deadline=start + SOLVE_SHARE * budget)
         comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress, deadline=deadline)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+from ..layered import SEARCHES
 from ..params import ConfigError, override, read_toml
 from ..pomdp import POMDP
 from ..relaxation import Relaxation
@@ -21,12 +22,14 @@ class Plan:
     """How to solve and compile: solver settings, the controller's node budget, the
     observation components (by position in the names) whose adverse levels must never
     lower the demand (empty: no such constraint), and an information relaxation whose
-    upper bound may certify the table more tightly than the model's own (none: no such)."""
+    upper bound may certify the table more tightly than the model's own (none: no such);
+    `layered_search`: how a table monotone in the conditions is improved (controller.SEARCHES)."""
 
     settings: SolverSettings
     max_nodes: int = 255
     conditions: tuple[int, ...] = ()
     relaxation: Optional[Callable[[POMDP], Relaxation]] = None
+    layered_search: str = "actions"
 
 
 @dataclass(frozen=True)
@@ -65,7 +68,10 @@ def plan_from(config: dict, plan: Plan) -> Plan:
     max_nodes = solver.pop("max_nodes", plan.max_nodes)
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, int) or not 1 <= max_nodes <= 65535:
         raise ConfigError(f"max_nodes must be a whole number in 1..65535, got {max_nodes!r}")
-    return replace(plan, settings=override(plan.settings, solver), max_nodes=max_nodes)
+    search = solver.pop("layered_search", plan.layered_search)
+    if search not in SEARCHES:
+        raise ConfigError(f"layered_search must be one of {', '.join(SEARCHES)}, got {search!r}")
+    return replace(plan, settings=override(plan.settings, solver), max_nodes=max_nodes, layered_search=search)
 
 
 def load(name: str, config_path: Optional[str | Path] = None) -> tuple[POMDP, Plan]:
