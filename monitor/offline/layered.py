@@ -89,6 +89,12 @@ def fixed_edge_q(model: POMDP, ctrl: Controller, V: np.ndarray, beliefs: np.ndar
     return q
 
 
+def strongest_best(q: np.ndarray) -> np.ndarray:
+    """Each row's best action, ties going to the stronger braking (the later action)."""
+    tol = 1e-12 * np.maximum(1.0, np.abs(q).max(axis=1, keepdims=True))
+    return np.where(q >= q.max(axis=1, keepdims=True) - tol, np.arange(q.shape[1])[None, :], -1).max(axis=1)
+
+
 SEARCHES = ("actions", "exact")   # how a layered controller is improved (compile_monotone)
 
 
@@ -129,6 +135,17 @@ class Layered:
         nxt = self.edges[:, self.layer.base][:, None, :] * Q + self.layer.step[None, :, :]    # (M, Q, Z)
         return Controller(self.action.astype(np.int64), nxt.reshape(-1, nxt.shape[2]), self.start)
 
+    def changed(self, kind: str, idx: np.ndarray, want: np.ndarray) -> "Layered":
+        """With "actions" idx (nodes) or "edges" idx (flattened base edges) set to `want`'s
+        entries; actions are raised to monotone."""
+        if kind == "actions":
+            action = self.action.copy()
+            action[idx] = want[idx]
+            return replace(self, action=raise_monotone(action, self.layer))
+        edges = self.edges.copy().ravel()
+        edges[idx] = want[idx]
+        return replace(self, edges=edges.reshape(self.edges.shape))
+
 
 def first_gain(model: POMDP, best: float, order: np.ndarray, make: Callable[[np.ndarray], Layered],
                V: np.ndarray) -> Optional[tuple[Layered, float, int, np.ndarray]]:
@@ -168,8 +185,7 @@ def action_changes(model: POMDP, lay: Layered, V: np.ndarray, x: np.ndarray) -> 
     """(nodes ordered by the gain of their best action (action_values), weighted by their
     visits; that action). Ties go to the stronger braking."""
     q = action_values(model, lay.controller, V, x)
-    tol = 1e-12 * np.maximum(1.0, np.abs(q).max(axis=1, keepdims=True))
-    want = np.where(q >= q.max(axis=1, keepdims=True) - tol, np.arange(q.shape[1])[None, :], -1).max(axis=1)
+    want = strongest_best(q)
     rows = np.arange(len(want))
     gain = (q[rows, want] - q[rows, lay.action]) * x.sum(axis=1)
     order = np.argsort(-gain, kind="stable")
@@ -228,15 +244,9 @@ def improve_layered(model: POMDP, lay: Layered, rounds: int, say: Callable[[str]
             if kind == "edges" and out_of_time(deadline):
                 break
             x = occupancy(model, lay.controller, guess=x)
-            if kind == "actions":
-                order, want = action_changes(model, lay, V, x)
-                make = lambda idx, lay=lay, want=want: replace(
-                    lay, action=raise_monotone(np.where(np.isin(np.arange(len(want)), idx), want, lay.action), lay.layer))
-            else:
-                order, want = edge_changes(model, lay, V, x)
-                make = lambda idx, lay=lay, want=want: replace(
-                    lay, edges=np.where(np.isin(np.arange(want.size), idx), want, lay.edges.ravel()).reshape(lay.edges.shape))
-            found = first_gain(model, best, order, make, V) if len(order) else None
+            order, want = (action_changes if kind == "actions" else edge_changes)(model, lay, V, x)
+            found = first_gain(model, best, order, lambda idx, lay=lay, kind=kind, want=want: lay.changed(kind, idx, want),
+                               V) if len(order) else None
             if found:
                 lay, best, k, V = found
                 moved.append(f"{k} {kind}")
@@ -264,9 +274,7 @@ def improve_actions(model: POMDP, lay: Layered, fallback: np.ndarray, rounds: in
         ctrl = lay.controller
         beliefs, mass = node_beliefs(model, ctrl)
         q = fixed_edge_q(model, ctrl, V, np.where(mass[:, None] > 1e-9, beliefs, fallback))
-        tol = 1e-12 * np.maximum(1.0, np.abs(q).max(axis=1, keepdims=True))
-        pick = np.where(q >= q.max(axis=1, keepdims=True) - tol, np.arange(q.shape[1])[None, :], -1).max(axis=1)
-        cand = replace(lay, action=raise_monotone(pick, lay.layer))
+        cand = replace(lay, action=raise_monotone(strongest_best(q), lay.layer))
         if np.array_equal(cand.action, lay.action):
             break
         cand_V = evaluate(model, cand.controller)

@@ -138,7 +138,7 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
 
     A table that must be monotone in reported conditions (plan.conditions) is built on a
     memory that does not see them (layered.compile_monotone). That memory comes from
-    solving the model with the conditions unobserved, up to BASE_SHARE: following the full
+    solving the model with the conditions unobserved (layered.base_model), up to BASE_SHARE: following the full
     model's alpha vectors on beliefs that cannot see the conditions lost half the value
     (Model 2: -1.29 against -0.68 at the same weights). The full model is solved after it,
     for the bounds that certify the table and the alpha vectors written beside it."""

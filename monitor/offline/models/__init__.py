@@ -23,7 +23,7 @@ class Plan:
     observation components (by position in the names) whose adverse levels must never
     lower the demand (empty: no such constraint), and an information relaxation whose
     upper bound may certify the table more tightly than the model's own (none: no such);
-    `layered_search`: how a table monotone in the conditions is improved (controller.SEARCHES)."""
+    `layered_search`: how a table monotone in the conditions is improved (layered.SEARCHES)."""
 
     settings: SolverSettings
     max_nodes: int = 255
