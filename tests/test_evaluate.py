@@ -4,12 +4,15 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+from pathlib import Path
 import sys
 
 import numpy as np
 import pytest
 
 from conftest import ROOT
+from monitor.core import table as table_format
+from monitor.core.table import decode
 from monitor.offline.controller import Controller
 from monitor.offline.models import load
 from verification import evaluate as ev
@@ -213,6 +216,19 @@ def test_no_worse_uses_the_interval_of_a_monte_carlo_estimate_only():
         {"p_hazard": False, "unnecessary_braking": False}
 
 
+def test_held_out_world_check_fails_a_table_that_brakes_always_or_lacks_a_baseline(tmp_path):
+    """verify's check in the world the sweep did not select on holds a table to the same rule:
+    braking all the time is worse than threshold, and a table whose belief-tracking baseline
+    cannot be built (no alpha vectors beside it) does not pass by default."""
+    shipped = decode((ROOT / "monitor" / "tables" / "m1.table.rgt").read_bytes())
+    path = tmp_path / "brake.table.rgt"
+    path.write_bytes(table_format.encode(shipped.header, [2], [[0] * len(shipped.header["observations"])]))
+    check = ev.held_out_check(str(path), lambda text: None, sizes=ev.Sizes(trains=8, seconds=60.0, episodes=100))
+    assert not check.passed and f"seed {ev.HELD_OUT_SEED}" in check.name
+    assert check.figure.startswith("unnecessary braking 1.00000 vs threshold 0.") and "belief_tracking missing" in check.figure
+    assert ev.HELD_OUT_SEED != ev.SEED
+
+
 def test_evaluate_human_output_and_errors(tmp_path):
     proc = railguard("evaluate", "m1", "--quick", "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
@@ -249,6 +265,22 @@ def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     assert json.loads((front / "frontier.json").read_text())["points"] == r["points"]
     assert (front / "frontier.png").read_bytes()[:4] == b"\x89PNG"
     assert all(os.path.isfile(p["table"]) for p in r["points"])
+    assert r["layered_search"] is None                    # m1's table is not layered
+
+
+def test_solve_pareto_builds_m2_with_the_layered_search_asked_for(tmp_path):
+    """`--layered-search` reaches every point of the sweep (it once used the plan's default
+    whatever the flag said): the point's table header and the frontier record it."""
+    grid = tmp_path / "grid.toml"
+    grid.write_text("collision_weight = [0.5]\n", encoding="utf-8")
+    proc = railguard("solve", "--pareto", "--model", "m2", "--grid", str(grid), "--layered-search", "exact",
+                     "--time-budget", "6", "--out", str(tmp_path), "--json")
+    assert proc.returncode == 0, proc.stderr
+    r = json.loads(proc.stdout)
+    assert r["layered_search"] == "exact"
+    header = decode(Path(r["points"][0]["table"]).read_bytes()).header
+    assert header["solver"]["layered_search"] == "exact" and header["params"]["collision_weight"] == 0.5
+    assert "layered search exact" in pareto.render(r)
 
 
 @pytest.mark.parametrize("text, words", [("bogus = [1.0]\n", "unknown: bogus"), ("braking_weight = 2.0\n", "non-empty list"),

@@ -57,11 +57,14 @@ def read_grid(path) -> list[dict]:
     return [dict(zip(keys, map(float, combo))) for combo in itertools.product(*(data[k] for k in keys))]
 
 
-def solve_point(name: str, weights: dict, out_dir: Path, time_budget: Optional[float]) -> Path:
-    """Solve and compile the model with these weights; the table's path (alphas beside it)."""
+def solve_point(name: str, weights: dict, out_dir: Path, time_budget: Optional[float],
+                layered_search: Optional[str] = None) -> Path:
+    """Solve and compile the model with these weights; the table's path (alphas beside it).
+    `layered_search` overrides the model's plan (layered.SEARCHES), as `railguard solve` does."""
     spec = MODELS[name]
     model = spec.build(override(spec.params, weights))
     plan = spec.plan if time_budget is None else replace(spec.plan, settings=replace(spec.plan.settings, time_budget_s=time_budget))
+    plan = replace(plan, layered_search=layered_search or plan.layered_search)
     # the frontier judges tables in the world; the relaxation's bound would certify nothing it shows
     result = pipeline.run(model, replace(plan, relaxation=None))
     return pipeline.write(result, out_dir)["table"]
@@ -99,23 +102,25 @@ def frontier(points: list[dict]) -> list[int]:
 
 def _point(job: tuple) -> dict:
     """One point of the sweep (a dask task): solve, compile and judge."""
-    name, weights, out_dir, time_budget, quick, seed = job
-    table = solve_point(name, weights, out_dir, time_budget)
+    name, weights, out_dir, time_budget, quick, seed, layered_search = job
+    table = solve_point(name, weights, out_dir, time_budget, layered_search)
     return {"weights": weights, "table": str(table), **judge_table(table, quick, seed)}
 
 
 def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[float] = None,
           grid: Optional[list[dict]] = None, seed: int = SEED, progress: Optional[Callable[[str], None]] = None,
-          cluster: Cluster = Cluster(1)) -> dict:
+          cluster: Cluster = Cluster(1), layered_search: Optional[str] = None) -> dict:
     """Every weight vector of `grid` solved and judged, one dask task per point on `cluster`
     (default: in this process; each solve is time-budgeted, so points that share a core get
-    less solver time each)."""
+    less solver time each); `layered_search` as in solve_point."""
     say = progress or (lambda text: None)
     grid = GRIDS[name] if grid is None else grid
     out_dir = Path(out_dir)
     t0 = time.perf_counter()
     say(f"pareto {name}: {len(grid)} points (solve, compile and judge each) on {cluster.describe()}")
-    jobs = [(name, weights, out_dir / f"{name}-point{i:02d}", time_budget, quick, seed) for i, weights in enumerate(grid)]
+    search = layered_search or MODELS[name].plan.layered_search
+    jobs = [(name, weights, out_dir / f"{name}-point{i:02d}", time_budget, quick, seed, search)
+            for i, weights in enumerate(grid)]
     points = map_ordered(_point, jobs, cluster, progress=say, label=f"pareto {name}", unit="points")
     defaults = MODELS[name].params      # belief tracking with the alpha vectors of the model's own weights
     default = next((i for i, w in enumerate(grid) if all(getattr(defaults, k, None) == v for k, v in w.items())), 0)
@@ -128,6 +133,7 @@ def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[fl
         "horizon_s": HORIZON_S,
         "quick": quick,
         "seed": seed,
+        "layered_search": search if MODELS[name].plan.conditions else None,
         "points": points,
         "frontier": front,
         "dominating": ok,
@@ -138,16 +144,19 @@ def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[fl
 
 
 def render(result: dict) -> str:
+    search = f"; layered search {result['layered_search']}" if result.get("layered_search") else ""
     lines = [f"Pareto sweep of {result['model']}: {len(result['points'])} weight vectors, p_hazard (exact, "
-             f"{result['horizon_s']:g} s) against unnecessary braking (seed world)", ""]
-    lines.append(f"{'#':>3} {'weights':<48}{'p_hazard':>12}{'unnecessary':>14}{'nodes':>7}  ")
-    for i, p in enumerate(result["points"]):
+             f"{result['horizon_s']:g} s) against unnecessary braking (seed world{search})", ""]
+    names = [", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in p["weights"].items())
+             for p in result["points"]]
+    wide = max([48, *(len(w) + 2 for w in names)])
+    lines.append(f"{'#':>3} {'weights':<{wide}}{'p_hazard':>12}{'unnecessary':>14}{'nodes':>7}  ")
+    for i, (p, w) in enumerate(zip(result["points"], names)):
         mark = ("*" if i == result["recommended"] else "F") if i in result["frontier"] else " "
-        w = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in p["weights"].items())
-        lines.append(f"{i:>3} {w:<48}{p['p_hazard']:>12.6f}{p['unnecessary_braking']:>14.5f}{p['nodes']:>7}  {mark}")
+        lines.append(f"{i:>3} {w:<{wide}}{p['p_hazard']:>12.6f}{p['unnecessary_braking']:>14.5f}{p['nodes']:>7}  {mark}")
     lines.append("")
     for name, b in result["baselines"].items():
-        lines.append(f"    {name:<48}{b['p_hazard']:>12.6f}{b['unnecessary_braking']:>14.5f}")
+        lines.append(f"    {name:<{wide}}{b['p_hazard']:>12.6f}{b['unnecessary_braking']:>14.5f}")
     lines.append("")
     held = " and ".join(evaluate.ACCEPTED.get(result["model"], ())) or "no baseline"
     lines.append(f"F: on the frontier; *: recommended (on the frontier, no worse than {held} on both figures, "

@@ -48,7 +48,8 @@ def pareto(args: argparse.Namespace) -> int:
     grid = sweep.read_grid(args.grid) if args.grid else None
     out = Path(args.out) / f"pareto-{args.model}"
     result = sweep.sweep(args.model, out, quick=True, time_budget=args.time_budget, grid=grid,
-                         progress=lambda text: print(text, file=sys.stderr, flush=True), cluster=cluster(args, 1))
+                         progress=lambda text: print(text, file=sys.stderr, flush=True), cluster=cluster(args, 1),
+                         layered_search=args.layered_search)
     files = [output.write_json(out / "frontier.json", result), sweep.plot(result, out / "frontier.png")]
     if args.json:
         print(json.dumps({**result, "files": output.files_of(*files)}))
@@ -132,7 +133,8 @@ def register(sub) -> None:
                    help="bound the whole run (solve, compile, evaluate) to about S seconds; with --pareto, per point "
                         "(default: the model's, m1 30 s, m2 60 s)")
     p.add_argument("--max-iterations", type=options.positive_int, metavar="N",
-                   help="stop after N backups (default: the model's)")
+                   help="stop after N backups; a build that stops on this, not on the clock, is reproducible "
+                        "(same table bytes; docs/models.md section 7) (default: the model's)")
     p.add_argument("--max-beliefs", type=options.positive_int, metavar="N", help="cap on the belief set (default: the model's)")
     p.add_argument("--target-gap", type=options.positive_float, metavar="X",
                    help="stop when gap <= X * max(1, |upper|) (default: the model's)")
@@ -144,8 +146,8 @@ def register(sub) -> None:
                         "(the shipped table). exact: actions and shared edges, the most promising first, each change "
                         "kept only if the exact value rises, the release cost counted both ways, the memory solved "
                         "with the last demand in the state: worth more in the model (-0.182 against -0.206 in 60 s), "
-                        "but at the shipped weights it brakes needlessly more in the world (docs/models.md section 5) "
-                        "(default: actions)")
+                        "but at the shipped weights it brakes needlessly more in the world, and from solve to solve it "
+                        "varies more (docs/models.md sections 5 and 7); with --pareto, for every point (default: actions)")
     p.add_argument("--pareto", action="store_true",
                    help="sweep the cost weights (collision, braking, demand change), solve each, judge each table "
                         "like `railguard evaluate --quick` and write DIR/pareto-MODEL/frontier.json and frontier.png "
