@@ -160,6 +160,16 @@ def test_a_refused_table_is_detected_and_not_a_crash(kind, variants):
     assert table_fault["detected"]
 
 
+def test_a_refused_table_on_the_bus_holds_the_train_at_the_entry():
+    """The bus run of a refused table: the Player alone, its train never enters; the outcome
+    says so ("held"), not "incomplete" (the Player's word for a run cut short)."""
+    spec = cp.BusSpec("t-refused", "static-300m-20", (cp.Fault("table_corrupted", -1, 0.0, 0.0, ("flip", 0.37)),),
+                      "m1", 7)
+    res = cp.bus_run(spec)
+    assert res["config_error"] and res["crash"] is None and res["unsafe"] == 0
+    assert res["outcome"] == "held" and not res["entered"] and not res["collision"]
+
+
 def test_virtual_bus_run_counts_bad_crc_rejects():
     spec = cp.BusSpec("t-bad-crc", "static-700m-30", (cp.Fault("bad_crc", 2, 1.0, 3.0),), "m1", 5, True, 20.0)
     res = cp.bus_run(spec)

@@ -158,6 +158,8 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
                 bus.shutdown()
             out.update(player.outcome(), entered=player.started, collision=player.collision,
                        brake_without_obstacle=True, cycles=len(player.trace), detected={f.kind: True for f in spec.faults})
+            if not player.started:      # the Player's "incomplete" (no verdict) would hide the safe side's verdict
+                out["outcome"] = "held"
             return out
         overrun = [f for f in spec.faults if f.kind == "deadline_overrun"]
         with tempfile.TemporaryDirectory(prefix="railguard-campaign-") as tmp:
