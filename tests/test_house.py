@@ -104,3 +104,16 @@ def test_a_broken_relative_import_is_found(tmp_path):
     (pkg / "__init__.py").write_text("")
     (pkg / "piece.py").write_text("def f():\n    from .hazard import X\n")
     assert unresolved_relative_imports(pkg / "piece.py") == ["line 2: .hazard"]
+
+
+def test_ci_runs_the_readme_test_command_and_every_realtime_module_exists():
+    """CI runs the test command README.md names (its line in .ci/run is quoted there as it
+    stands), and each module kept out of the parallel phase exists: a renamed timing test would
+    otherwise run on both cores beside the heavy ones and be judged under their load."""
+    from conftest import REALTIME_MODULES
+
+    command = (ROOT / ".ci" / "run").read_text(encoding="utf-8").rstrip("\n").splitlines()[-1]
+    assert "pytest" in command and f"`{command}`" in (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "-m 'not realtime'" in command and "-m realtime" in command
+    missing = sorted(m for m in REALTIME_MODULES if not (ROOT / "tests" / f"{m}.py").is_file())
+    assert not missing, missing

@@ -89,6 +89,7 @@ def test_no_relaxation_is_started_without_time_left(m2):
     assert said and "no time left" in said[0]
 
 
+@pytest.mark.realtime      # a wall-clock budget: under another test's load the compile leaves the relaxation no time
 def test_solve_m2_as_users_run_it_prints_the_tighter_bound(tmp_path):
     """`railguard solve --model m2` in a subprocess: the upper bound printed and written is the
     smaller of the model's own and the relaxation's, and the relaxation is named."""
