@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 import monitor
-from monitor.core.config import Config, ConfigurationError
+from monitor.core.config import Config, ConfigurationError, forget_cycles
 from monitor.core.cycle import create, initial_state, replay, step
 from monitor.core.braking import curves
 from monitor.core.table import decode, encode
@@ -21,7 +21,7 @@ from monitor.core.types import (
     ABSENT, DEGRADED, DEGRADED_MODE, DYNAMIC, EMERGENCY, INIT, MAINTAIN, MAX_CLOSING_CMS,
     MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT,
     R_DISPUTE, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_SBI, R_STALE, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT,
-    R_WARNING, SAFE_STOP, SERVICE, STATIC, TRAIN, Inputs, Report, State, Train,
+    R_WARNING, SAFE_STOP, SERVICE, STATIC, TRACK_FORGOTTEN, TRACK_NONE, TRAIN, Inputs, Report, State, Train,
 )
 
 TABLES = Path(monitor.__file__).resolve().parent / "tables"
@@ -273,11 +273,13 @@ def test_persistent_2oo2_disagreement_is_a_perceptor_error_and_safe_stop():
     assert out.mode == SAFE_STOP
     assert out.reasons & R_PERCEPTOR and out.reasons & R_SAFE_STOP
     assert out.demand == EMERGENCY
-    # healthy again but moving: SAFE_STOP is kept however long it lasts
-    for _ in range(3 * d.cfg.recovery_cycles):
+    # healthy again but moving: SAFE_STOP is kept however long it lasts; the perceptor
+    # error itself clears after persistence_cycles calm cycles in a row
+    for k in range(3 * d.cfg.recovery_cycles):
         out = d.clear(V)
         assert out.mode == SAFE_STOP and out.demand == EMERGENCY
-        assert out.reasons & R_SAFE_STOP and not out.reasons & R_PERCEPTOR
+        assert out.reasons & R_SAFE_STOP
+        assert bool(out.reasons & R_PERCEPTOR) == (k < d.cfg.persistence_cycles - 1), k
     # an invalid speed is not a standstill
     out = d.cycle(clear(d.tick), train=Train(-1))
     assert out.mode == SAFE_STOP and out.demand == EMERGENCY
@@ -295,7 +297,8 @@ def test_safe_stop_at_standstill_needs_recovery_cycles_healthy_cycles():
     for _ in range(d.cfg.persistence_cycles):
         out = d.cycle(disagreeing(d.tick), 0)
     assert out.mode == SAFE_STOP
-    for _ in range(d.cfg.recovery_cycles - 1):
+    # the perceptor error clears after persistence_cycles calm cycles, then recovery_cycles healthy ones
+    for _ in range(d.cfg.persistence_cycles - 1 + d.cfg.recovery_cycles - 1):
         out = d.clear(0)
         assert out.mode == SAFE_STOP and out.demand == EMERGENCY and out.reasons & R_SAFE_STOP
     out = d.clear(0)
@@ -303,13 +306,32 @@ def test_safe_stop_at_standstill_needs_recovery_cycles_healthy_cycles():
 
 
 def test_a_disagreement_shorter_than_persistence_is_no_perceptor_error():
+    """Disagreements separated by persistence_cycles calm cycles in a row never add up."""
     d = normal_driver()
     for _ in range(10):
         for _ in range(d.cfg.persistence_cycles - 1):
             out = d.cycle(disagreeing(d.tick), V)
             assert out.mode == DEGRADED_MODE and not out.reasons & R_PERCEPTOR
-        out = d.clear(V)
-        assert out.mode == DEGRADED_MODE
+        for _ in range(d.cfg.persistence_cycles):
+            out = d.clear(V)
+            assert out.mode in (DEGRADED_MODE, NORMAL) and not out.reasons & R_PERCEPTOR
+
+
+@pytest.mark.parametrize("calm", [1, 5, 9])
+def test_disagreements_add_up_until_a_calm_spell_of_persistence_cycles(calm):
+    """Issue 29 item 5: a flapping channel (disagreeing, then agreeing for fewer than
+    persistence_cycles) escalates to a perceptor error: the count is not restarted by a
+    short agreement."""
+    d = normal_driver()
+    n = d.cfg.persistence_cycles
+    for k in range(n - 1):
+        out = d.cycle(disagreeing(d.tick), V)
+        if k % 3 == 2:
+            for _ in range(calm):
+                out = d.clear(V)
+                assert not out.reasons & R_PERCEPTOR
+    out = d.cycle(disagreeing(d.tick), V)
+    assert out.mode == SAFE_STOP and out.reasons & R_PERCEPTOR and out.demand == EMERGENCY
 
 
 def test_disagreement_in_the_other_direction_and_other_module_counts_too():
@@ -503,19 +525,18 @@ def test_envelope_with_m2_table():
 
 
 def test_emergency_latch_holds_until_a_standstill_cycle():
+    """A disputed obstacle (one channel) inside EBI is answered while reported but not
+    remembered: when it is gone, only the latch holds the emergency, to standstill."""
     d = normal_driver(HELD)
-    out = d.present(1000, V)            # inside the envelope at 40 m/s
-    assert out.demand == EMERGENCY and out.reasons & R_ENVELOPE
+    out = d.cycle(disagreeing(d.tick, 1000), V)   # inside the envelope at 40 m/s
+    assert out.demand == EMERGENCY and out.reasons & R_ENVELOPE and out.track_state == TRACK_NONE
     assert not out.reasons & R_LATCH    # the cycle that demands it names its cause
     for speed in (V, V, 100, 1, MAX_SPEED_CMS):
         out = d.clear(speed)           # the cause is gone, the train still moves
         assert out.demand == EMERGENCY
         assert out.reasons & R_LATCH and not out.reasons & R_ENVELOPE
-        assert out.mode == NORMAL
     out = d.clear(0)
     assert out.demand == MAINTAIN and not out.reasons & R_LATCH
-    out = d.clear(V)
-    assert out.demand == MAINTAIN and out.reasons == 0
 
 
 def maintain_only(table: bytes) -> bytes:
@@ -545,26 +566,34 @@ def test_a_revocable_emergency_needs_the_obstacle_back_beyond_sbi_for_the_confir
 
 
 def test_a_revocable_emergency_is_released_after_the_obstacle_is_voted_absent_for_the_confirmation_time():
+    """A disputed obstacle is not remembered: the revocable release counts calm cycles."""
     cfg = Config(release_confirm_cycles=7)
     d = normal_driver(cfg)
-    assert d.present(100, V).demand == EMERGENCY
+    assert d.cycle(disagreeing(d.tick, 100), V).demand == EMERGENCY
     for k in range(6):
         out = d.clear(V)
         assert out.demand == EMERGENCY and out.reasons & R_LATCH, k
         if k == 3:
-            assert d.present(100, V).demand == EMERGENCY      # the cause comes back: the count restarts
+            assert d.cycle(disagreeing(d.tick, 100), V).demand == EMERGENCY   # back: the count restarts
     for k in range(4):                                          # 2 calm cycles above, 4 more: 6
         assert d.clear(V).demand == EMERGENCY, k
     out = d.clear(V)                                            # the 7th
     assert out.demand == MAINTAIN and not d.state.latched
 
 
-def test_service_braking_is_not_latched():
-    d = normal_driver(Config(safe_reaction=SERVICE))
+def test_service_braking_is_held_for_the_confirmation_time_only():
+    """Issue 29 item 2: a service demand is lowered only after release_confirm_cycles calm
+    cycles (it used to drop at once), and never latched beyond them."""
+    cfg = Config(safe_reaction=SERVICE)
+    d = normal_driver(cfg)
     out = d.cycle(with_channel(clear(d.tick), 0, None), V)
     assert out.demand == SERVICE
+    for k in range(cfg.release_confirm_cycles - 1):
+        out = d.clear(V)
+        assert out.demand == SERVICE and out.reasons & R_LATCH, k
+        assert d.state.held == SERVICE and d.state.calm == k + 1
     out = d.clear(V)
-    assert out.demand == MAINTAIN and not out.reasons & R_LATCH
+    assert out.demand == MAINTAIN and not out.reasons & R_LATCH and d.state.held == MAINTAIN
 
 
 # --------------------------------------------------------------------------- deadline
@@ -914,6 +943,9 @@ def test_2oo2_topology_runs_on_two_reports():
     assert out.reasons & R_ENVELOPE and out.demand == EMERGENCY
     out = d.clear(0)
     assert out.demand == MAINTAIN         # standstill releases the emergency
+    for _ in range(forget_cycles(cfg) - 1):   # the remembered obstacle is forgotten on evidence
+        out = d.clear(0)
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == NO_DISTANCE
     # disagreement: error now, perceptor error after persistence_cycles
     for k in range(cfg.persistence_cycles):
         t = d.tick

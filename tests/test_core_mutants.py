@@ -215,43 +215,60 @@ def test_latch_holds_at_1_cms_and_releases_at_standstill():
     """An emergency is held while the train moves at all, 1 cm/s included, and only
     standstill (speed 0) releases it without a revocable release; no calm cycles are
     counted while it is held to standstill."""
-    from monitor.core.envelope import latch
+    from monitor.core.envelope import hold
 
-    assert latch(False, 0, EMERGENCY, 1, False, 5) == (True, 0, EMERGENCY)
-    assert latch(True, 0, MAINTAIN, 1, False, 5) == (True, 0, EMERGENCY)
-    assert latch(True, 0, SERVICE, 1, False, 5) == (True, 0, EMERGENCY)
-    assert latch(True, 0, MAINTAIN, 0, False, 5) == (False, 0, MAINTAIN)
-    assert latch(False, 0, EMERGENCY, 0, True, 5) == (False, 0, EMERGENCY)
-    state = (True, 0)
+    assert hold(MAINTAIN, 0, EMERGENCY, 1, False, 5) == (EMERGENCY, 0, EMERGENCY)
+    assert hold(EMERGENCY, 0, MAINTAIN, 1, False, 5) == (EMERGENCY, 0, EMERGENCY)
+    assert hold(EMERGENCY, 0, SERVICE, 1, False, 5) == (EMERGENCY, 0, EMERGENCY)
+    assert hold(EMERGENCY, 0, MAINTAIN, 0, False, 5) == (MAINTAIN, 0, MAINTAIN)
+    assert hold(MAINTAIN, 0, EMERGENCY, 0, True, 5) == (EMERGENCY, 0, EMERGENCY)
+    state = (EMERGENCY, 0)
     for _ in range(10):                       # held to standstill: calm never counts
-        held, calm, demand = latch(*state, MAINTAIN, 4000, False, 5)
-        assert (held, calm, demand) == (True, 0, EMERGENCY)
+        held, calm, demand = hold(*state, MAINTAIN, 4000, False, 5)
+        assert (held, calm, demand) == (EMERGENCY, 0, EMERGENCY)
         state = (held, calm)
 
 
 def test_revocable_release_after_exactly_confirm_calm_cycles():
     """Revocable release: with release_confirm_cycles = 5 the emergency is still held on
     the 4th calm cycle and released on the 5th; the state after the release is the state of
-    a monitor that never latched (calm 0); a new emergency cause resets the count."""
-    from monitor.core.envelope import latch
+    a monitor that never held (calm 0); a new emergency cause resets the count. A held
+    service is released the same way, even when emergency is held to standstill."""
+    from monitor.core.envelope import hold
 
-    latched, calm = latch(False, 0, EMERGENCY, 2000, True, 5)[:2]
-    assert (latched, calm) == (True, 0)
+    held, calm = hold(MAINTAIN, 0, EMERGENCY, 2000, True, 5)[:2]
+    assert (held, calm) == (EMERGENCY, 0)
     for k in range(1, 5):
-        latched, calm, demand = latch(latched, calm, MAINTAIN, 2000, True, 5)
-        assert (latched, calm, demand) == (True, k, EMERGENCY)
-    assert latch(latched, calm, MAINTAIN, 2000, True, 5) == (False, 0, MAINTAIN)
-    assert latch(True, 3, EMERGENCY, 2000, True, 5) == (True, 0, EMERGENCY)
-    assert latch(True, 0, MAINTAIN, 2000, True, 1) == (False, 0, MAINTAIN)
+        held, calm, demand = hold(held, calm, MAINTAIN, 2000, True, 5)
+        assert (held, calm, demand) == (EMERGENCY, k, EMERGENCY)
+    assert hold(held, calm, MAINTAIN, 2000, True, 5) == (MAINTAIN, 0, MAINTAIN)
+    assert hold(EMERGENCY, 3, EMERGENCY, 2000, True, 5) == (EMERGENCY, 0, EMERGENCY)
+    assert hold(EMERGENCY, 0, MAINTAIN, 2000, True, 1) == (MAINTAIN, 0, MAINTAIN)
+    assert hold(EMERGENCY, 4, SERVICE, 2000, True, 5) == (SERVICE, 0, SERVICE)
+    assert hold(SERVICE, 3, MAINTAIN, 2000, False, 5) == (SERVICE, 4, SERVICE)
+    assert hold(SERVICE, 4, MAINTAIN, 2000, False, 5) == (MAINTAIN, 0, MAINTAIN)
+    assert hold(SERVICE, 2, SERVICE, 2000, True, 5) == (SERVICE, 0, SERVICE)
 
 
 def test_no_calm_is_counted_while_nothing_is_held():
-    """Without a held emergency the calm counter stays 0, whatever the demand and speed."""
-    from monitor.core.envelope import latch
+    """Without a held demand above the causes' the calm counter stays 0, whatever the
+    demand and speed."""
+    from monitor.core.envelope import hold
 
     for demand in (MAINTAIN, SERVICE):
         for speed in (0, 1, 4000):
-            assert latch(False, 0, demand, speed, True, 5) == (False, 0, demand)
+            assert hold(demand, 0, demand, speed, True, 5) == (demand, 0, demand)
+            assert hold(MAINTAIN, 0, demand, speed, True, 5) == (demand, 0, demand)
+
+
+def test_table_hold_keeps_what_the_table_raised_inside_its_zones():
+    from monitor.core.envelope import table_hold
+
+    assert table_hold(SERVICE, MAINTAIN, 1, False) == SERVICE
+    assert table_hold(EMERGENCY, SERVICE, 1, False) == EMERGENCY
+    assert table_hold(SERVICE, MAINTAIN, 0, False) == MAINTAIN      # standstill
+    assert table_hold(SERVICE, MAINTAIN, 1, True) == MAINTAIN       # zone free
+    assert table_hold(SERVICE, EMERGENCY, 1, False) == EMERGENCY
 
 
 def test_latch_through_the_cycle_at_1_cms():
@@ -259,7 +276,7 @@ def test_latch_through_the_cycle_at_1_cms():
     EBI, the track clears but the train still rolls at 1 cm/s: the demand stays emergency;
     at 0 cm/s it is released."""
     core = Core(Config(emergency_release=0)).normal()
-    out = core.cycle(core.reports([PRESENT] * 6, [300] * 6), V)
+    out = core.cycle(core.reports([PRESENT] + [ABSENT] * 5, [300] + [0] * 5), V)   # disputed: not remembered
     assert out.demand == EMERGENCY and core.state.latched
     for _ in range(12):
         out = core.clear(1)
@@ -339,7 +356,7 @@ def test_initial_state_is_init_at_the_start_node_with_every_counter_zero(topolog
 
     core = Core(Config(topology=topology))
     start = core.setup.table.start
-    assert initial_state(core.setup) == State(INIT, start, False, 0, (0,) * modules, 0, 0, 0, 0)
+    assert initial_state(core.setup) == State(INIT, start, 0, 0, (0,) * modules, 0, 0, 0, 0, (0,) * modules)
 
 
 def test_healthy_and_error_cycles_count_from_zero():
@@ -423,7 +440,7 @@ def test_anything_unforeseen_inside_a_cycle_gives_exactly_the_safe_stop_outputs(
     state, out = step(core.setup, before, inputs, core.tick)
     assert out == Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, before.node, SAFE_STOP, 0,
                           True, 0, before.cycle + 1, before.error_cycles + 1, True)
-    assert state == before._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=before.cycle + 1,
+    assert state == before._replace(mode=SAFE_STOP, held=EMERGENCY, healthy=0, cycle=before.cycle + 1,
                                     error_cycles=before.error_cycles + 1, calm=0)
 
 
@@ -759,7 +776,8 @@ BOUNDS = [("period_ms", 1, 10000), ("timeout_cycles", 1, 600), ("persistence_cyc
           ("standstill_margin_dm", 0, 10000), ("warning_ms", 0, 60000), ("emergency_release", 0, 1),
           ("release_confirm_cycles", 1, 1000), ("warning_margin_dm", 0, 60000), ("fast_closing_cms", 1, 15000),
           ("safe_reaction", 1, 2), ("recovery_cycles", 1, 100000), ("max_overruns", 1, 1000),
-          ("distance_tolerance_dm", 0, 60000), ("emergency_band2_cms", 0, 12000)]
+          ("distance_tolerance_dm", 0, 60000), ("emergency_band2_cms", 0, 12000), ("forget_ms", 1, 600000),
+          ("sensor_range_dm", 1, 60000)]
 
 
 @pytest.mark.parametrize("bound", BOUNDS, ids=[b[0] for b in BOUNDS])

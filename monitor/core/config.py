@@ -53,6 +53,9 @@ class Config(NamedTuple):
     recovery_cycles: int = 10          # error-free cycles before DEGRADED/SAFE_STOP clear
     max_overruns: int = 3              # consecutive deadline overruns leading to SAFE_STOP
     distance_tolerance_dm: int = 100   # 2oo2: two PRESENT distances further apart than this raise the flag
+    # --- obstacle memory (monitor/core/memory.py, docs/supervision.md section 6)
+    forget_ms: int = 5000              # fresh unanimous ABSENT this long forgets a remembered obstacle
+    sensor_range_dm: int = 4000        # the sensors' declared range: absence counts as evidence only inside it
 
     @property
     def modules(self) -> int:
@@ -122,6 +125,13 @@ def check(cfg: Config) -> None:
     need(1 <= cfg.recovery_cycles <= 100000, "recovery_cycles", "must be 1..100000 cycles")
     need(1 <= cfg.max_overruns <= 1000, "max_overruns", "must be 1..1000")
     need(0 <= cfg.distance_tolerance_dm <= 60000, "distance_tolerance_dm", "must be 0..60000 dm")
+    need(1 <= cfg.forget_ms <= 600000, "forget_ms", "must be 1..600000 ms (10 min; rounded up to whole cycles)")
+    need(1 <= cfg.sensor_range_dm <= 60000, "sensor_range_dm", "must be 1..60000 dm")
+
+
+def forget_cycles(cfg: Config) -> int:
+    """Cycles of evidence that make `forget_ms`, rounded up (never forget early)."""
+    return -(-cfg.forget_ms // cfg.period_ms)
 
 
 def emergency_bands(cfg: Config) -> tuple:

@@ -14,16 +14,17 @@ from typing import NamedTuple
 from . import config as config_mod
 from .config import Config, ConfigurationError
 from .braking import curves, ebi_dm
-from .config import RELEASE_REVOCABLE
-from .envelope import combine, latch, supervision_demand, zone
+from .config import RELEASE_REVOCABLE, forget_cycles, gradient_accel_mms2
+from .envelope import combine, hold, supervision_demand, table_hold, zone
 from .freshness import channel_status
+from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .table import Table, TableError, decode
 from .types import (
-    DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NORMAL,
-    PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
-    R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC, Inputs,
-    Outputs, State,
+    ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
+    NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
+    R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC,
+    TRACK_FORGOTTEN, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Outputs, State,
 )
 from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
 
@@ -38,6 +39,8 @@ class Setup(NamedTuple):
     action: tuple
     next: tuple
     all_seen: int
+    forget_cycles: int    # evidence cycles that forget a remembered obstacle
+    track_accel: int      # mm/s^2 the train may gain per second: traction plus the steepest downhill
 
 
 def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> Setup:
@@ -61,11 +64,13 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
     if round(step_s * 1000) != cfg.period_ms:
         raise ConfigurationError(f"table was solved for a time step of {step_s} s but period_ms = {cfg.period_ms}")
     return Setup(cfg, table, model, cfg.timeout_cycles * cfg.period_ms, table.action, table.next,
-                 (1 << cfg.channels) - 1)
+                 (1 << cfg.channels) - 1, forget_cycles(cfg),
+                 cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille))
 
 
 def initial_state(setup: Setup) -> State:
-    return State(INIT, setup.table.start, False, 0, (0,) * setup.config.modules, 0, 0, 0, 0)
+    modules = (0,) * setup.config.modules
+    return State(INIT, setup.table.start, MAINTAIN, 0, modules, 0, 0, 0, 0, modules)
 
 
 def _train(train) -> tuple[int, int, int, bool]:
@@ -93,7 +98,7 @@ def step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, 
         cycle, errors = _inc(state.cycle), _inc(state.error_cycles)
         out = Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, state.node,
                       SAFE_STOP, 0, True, 0, cycle, errors, True)
-        return state._replace(mode=SAFE_STOP, latched=True, healthy=0, cycle=cycle, error_cycles=errors, calm=0), out
+        return state._replace(mode=SAFE_STOP, held=EMERGENCY, healthy=0, cycle=cycle, error_cycles=errors, calm=0), out
 
 
 def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, Outputs]:
@@ -121,9 +126,11 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
                 obstacle = r.obstacle if r.obstacle > obstacle else obstacle
                 age = tick - r.tick if tick - r.tick > age else age
 
-    # 2. 2oo2 per module, with disagreement persistence
+    # 2. 2oo2 per module, with disagreement persistence: disagreement cycles add up until
+    #    `persistence_cycles` calm cycles in a row clear them, so a flapping channel escalates
     results = []
     disagree = []
+    agree = []
     flags = 0
     perceptor = False
     for m in range(cfg.modules):
@@ -136,8 +143,13 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         results.append(res)
         if res[2]:
             flags |= 1 << m
-        count = _inc(state.disagree[m]) if disagreement(sa, sb) else 0
+        if disagreement(sa, sb):
+            count, calm_m = _inc(state.disagree[m]), 0
+        else:
+            calm_m = _inc(state.agree[m])
+            count = 0 if calm_m >= cfg.persistence_cycles else state.disagree[m]
         disagree.append(count)
+        agree.append(calm_m)
         if count >= cfg.persistence_cycles:
             perceptor = True
 
@@ -148,21 +160,49 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     else:
         sys_status, distance, sys_error = vote_single(*results[0])
 
-    # 4. braking curves at the measured speed (docs/supervision.md), under the reported
-    #    conditions for the supervision and under normal ones for the table's zones
-    #    (computed only with a voted obstacle: without one the ladder asks for nothing)
-    # 5. observation
+    # 4. obstacle memory (memory.py): the remembered obstacle was moved to this cycle at the
+    #    end of the last one (worst case); the train's least travel moves what "passed" reads
     speed, track, brake, train_ok = _train(inputs.train)
+    err = cfg.speed_error_permille
+    own_speed = speed * (1000 - err) // 1000          # the train's share of a closing speed
     toward = speed if closing is None else closing
+    near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, state.track_age_ms
+    t_cycles, t_absent = 0, 0
+    if distance != NO_DISTANCE:
+        near, far, t_closing, t_age = observe(near, far, t_closing, t_age, distance, toward - own_speed, age,
+                                              sys_status == PRESENT and not sys_error)
+        t_state = TRACK_NONE if near == NO_TRACK else TRACK_SEEN
+    elif near != NO_TRACK:
+        far -= far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
+        evidence = sys_status == ABSENT and not sys_error and not stale
+        t_absent, t_state = forget(state.track_absent, evidence, far <= cfg.sensor_range_dm * UNITS_PER_DM,
+                                   far < 0, setup.forget_cycles)
+        if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
+            near, far, t_closing, t_age = NO_TRACK, NO_TRACK, 0, 0
+        else:
+            t_cycles = _inc(state.track_cycles)
+    else:
+        t_state = TRACK_NONE
+    t_dm = distance_dm(near)
+
+    # 5. braking curves at the measured speed (docs/supervision.md) for the nearer of the voted
+    #    and the remembered obstacle, under the reported conditions; the table's zones under
+    #    normal ones; the observation reads the voted picture alone
     if distance != NO_DISTANCE:
         curve = curves(cfg, speed, track, brake, toward, age)
-        env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
-        alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age) if (track or brake) else curve.ebi_dm
-        alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
-        z = zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
+        z = _table_zone(cfg, distance, speed, track or brake, toward, age, curve.ebi_dm)
     else:
-        env, warn = MAINTAIN, False
         z = 3 if sys_status == DEGRADED else 0
+    remembered = t_dm < distance
+    if remembered:
+        curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
+        z_sup = _table_zone(cfg, t_dm, speed, track or brake, t_closing + own_speed, t_age, curve.ebi_dm)
+        env, warn = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
+    elif distance != NO_DISTANCE:
+        z_sup = z
+        env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
+    else:
+        z_sup, env, warn = 0, MAINTAIN, False
     if setup.model == "m1":
         obs = z
     else:
@@ -191,18 +231,17 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     # 6. table (held during any system error: it reads only pictures the voter confirms;
     #    the curves and the error rules answer meanwhile)
+    #    what the table raised is held while its obstacle, voted or remembered, is in its zones
     if mode == INIT:
         node = setup.table.start
         table_demand = MAINTAIN
-    elif error and mode != SAFE_STOP:
-        node = state.node
-        table_demand = setup.action[node]
     else:
-        node = setup.next[state.node][obs]
-        table_demand = setup.action[node]
+        node = state.node if error and mode != SAFE_STOP else setup.next[state.node][obs]
+        table_demand = table_hold(state.table_held, setup.action[node], speed, z_sup == 0)
 
-    # 7. demands, only ever upwards, then the latch; INIT brakes without latching, so a
-    #    monitor started on a moving train releases once its picture is valid
+    # 7. demands, only ever upwards, then the hold (released only after `release_confirm_cycles`
+    #    in which the causes, remembered obstacles included, ask for less); INIT brakes without
+    #    holding, so a monitor started on a moving train releases once its picture is valid
     reasons = 0
     error_demand = MAINTAIN
     if table_demand:
@@ -213,6 +252,8 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         reasons |= R_SBI
     if stale:
         reasons |= R_STALE
+    if remembered:
+        reasons |= R_MEMORY
     if error:
         reasons |= R_SYSTEM_ERROR | (0 if train_ok else R_TRAIN_INPUT)
         if dispute:
@@ -224,9 +265,9 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         error_demand = EMERGENCY
         reasons |= R_SAFE_STOP | (R_PERCEPTOR if perceptor else 0) | (R_DEADLINE if overrun_limit else 0)
     demand = combine(table_demand, env, error_demand)
-    latched, calm, final = latch(state.latched, state.calm, demand, speed,
-                                 cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
-    if latched and state.latched and demand != EMERGENCY:
+    held, calm, final = hold(state.held, state.calm, demand, speed, cfg.emergency_release == RELEASE_REVOCABLE,
+                             cfg.release_confirm_cycles)
+    if final > demand:
         reasons |= R_LATCH
     if mode == INIT:
         final = EMERGENCY
@@ -236,9 +277,24 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     error_cycles = _inc(state.error_cycles) if error or stale else state.error_cycles
     cycle = _inc(state.cycle)
-    new_state = State(mode, node, latched, seen, tuple(disagree), healthy, cycle, error_cycles, calm)
-    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn)
+    # the remembered obstacle moved for the next period, worst case for the train
+    if near != NO_TRACK:
+        near -= near_travel(speed, err, setup.track_accel, t_closing, cfg.period_ms)
+        near = near if near > 0 else 0
+    new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
+                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_age, t_cycles, t_absent)
+    out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
+                  t_dm, t_cycles, t_state)
     return new_state, out
+
+
+def _table_zone(cfg: Config, distance: int, speed: int, adverse: int, toward: int, age: int, ebi: int) -> int:
+    """Zone of an obstacle for the table: alpha2 = EBI and alpha1 = the service curve's EBI,
+    both under normal conditions (alpha1 at least alpha2); `ebi` is EBI under the reported
+    conditions, which is alpha2 when they are normal."""
+    alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age) if adverse else ebi
+    alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
+    return zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
 
 
 def replay(setup: Setup, sequence) -> list:

@@ -58,22 +58,43 @@ def combine(table_demand: int, envelope: int, error_demand: int) -> int:
     return max(table_demand, envelope, error_demand)
 
 
-def latch(latched: bool, calm: int, demand: int, speed_cms: int, revocable: bool, confirm: int) -> tuple[bool, int, int]:
-    """(latched, calm, demand): an emergency, once demanded, is held until standstill or, if
-    `revocable`, until its cause has been gone for `confirm` cycles in a row (`calm`
-    counts them), as ETCS does by national value.
+def hold(level: int, calm: int, demand: int, speed_cms: int, revocable: bool, confirm: int) -> tuple[int, int, int]:
+    """(level, calm, demand): a demand, once raised, is held while the train moves and is
+    lowered only after the causes have asked for less for `confirm` cycles in a row (`calm`
+    counts them); an emergency only if `revocable` (ETCS's national value), else at
+    standstill. The causes include every remembered obstacle's curves (cycle.py), so a
+    demand a curve raised is never lowered while the train is inside that curve.
 
-    pre: 0 <= demand <= 2 and speed_cms >= 0 and confirm >= 1 and calm >= 0
+    pre: 0 <= level <= 2 and 0 <= demand <= 2 and speed_cms >= 0 and confirm >= 1 and calm >= 0
     post: __return__[2] >= demand
-    post: not (demand == 2 and speed_cms > 0) or (__return__[0] and __return__[1] == 0)
-    post: not (speed_cms == 0) or __return__ == (False, 0, demand)
-    post: not (latched and speed_cms > 0 and not revocable) or __return__[0]
-    post: not (latched and speed_cms > 0 and calm + 1 < confirm) or __return__[0]
-    post: __return__[2] == (2 if __return__[0] else demand)
-    post: __return__[1] < confirm and (revocable or __return__[1] == 0)
+    post: __return__[2] == __return__[0]
+    post: not (speed_cms == 0) or __return__ == (demand, 0, demand)
+    post: not (demand == 2) or __return__ == (2, 0, 2)
+    post: not (level == 2 and speed_cms > 0 and not revocable) or __return__[0] == 2
+    post: not (speed_cms > 0 and calm + 1 < confirm) or __return__[0] >= level
+    post: __return__[0] in (level, demand)
+    post: __return__[1] < confirm and (__return__[1] == 0 or __return__[1] == calm + 1)
     """
-    held = (latched or demand == EMERGENCY) and speed_cms > 0
-    calm = calm + 1 if held and revocable and demand != EMERGENCY else 0
-    if held and revocable and calm >= confirm:
-        held, calm = False, 0
-    return held, calm, (EMERGENCY if held else demand)
+    if speed_cms == 0 or demand >= level:
+        return demand, 0, demand
+    if level == EMERGENCY and not revocable:
+        return level, 0, level
+    if calm + 1 >= confirm:
+        return demand, 0, demand
+    return level, calm + 1, level
+
+
+def table_hold(level: int, demand: int, speed_cms: int, zone_free: bool) -> int:
+    """The table's demand after its hold: what the table raised is lowered only once its
+    obstacle (voted or remembered) has left the table's zones, or at standstill, so that a
+    table whose belief wavers at low speed does not toggle the brake (issue 29 item 6).
+
+    pre: 0 <= level <= 2 and 0 <= demand <= 2 and speed_cms >= 0
+    post: __return__ >= demand
+    post: __return__ in (level, demand)
+    post: not (speed_cms > 0 and not zone_free) or __return__ >= level
+    post: not (speed_cms == 0 or zone_free) or __return__ == demand
+    """
+    if demand >= level or speed_cms == 0 or zone_free:
+        return demand
+    return level

@@ -27,7 +27,7 @@ MODE_NAMES = ("INIT", "NORMAL", "DEGRADED", "SAFE_STOP")
 R_TABLE = 1 << 0         # the policy table asked for braking
 R_ENVELOPE = 1 << 1      # voted obstacle inside the emergency intervention curve (EBI)
 R_SYSTEM_ERROR = 1 << 2  # 2oo2 flag, 3oo3 disagreement or degraded module
-R_LATCH = 1 << 3         # emergency latched until standstill
+R_LATCH = 1 << 3         # a demand held that no current cause asks for (until standstill or its release)
 R_INIT = 1 << 4          # not every channel fresh yet
 R_SAFE_STOP = 1 << 5     # perceptor error or repeated deadline overruns
 R_STALE = 1 << 6         # at least one channel stale, out of range or never heard
@@ -37,8 +37,13 @@ R_TRAIN_INPUT = 1 << 9   # train state out of range
 R_SBI = 1 << 10          # voted obstacle inside the service intervention curve (SBI): service
 R_WARNING = 1 << 11      # voted obstacle inside the warning curve, or a disputed obstacle
 R_DISPUTE = 1 << 12      # channels disagree about an obstacle while all are fresh: graded answer
+R_MEMORY = 1 << 13       # the curves supervise a remembered obstacle that no channel shows this cycle
 REASON_NAMES = ("table", "envelope", "system_error", "latch", "init", "safe_stop",
-                "stale", "perceptor", "deadline", "train_input", "sbi", "warning", "dispute")
+                "stale", "perceptor", "deadline", "train_input", "sbi", "warning", "dispute", "memory")
+
+# Obstacle memory (monitor/core/memory.py): why the track is what it is this cycle.
+TRACK_NONE, TRACK_SEEN, TRACK_HELD, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_PASSED = range(6)
+TRACK_NAMES = ("none", "seen", "held", "confirming", "forgotten", "passed")
 
 # Documented input ranges; anything outside counts as DEGRADED (or as a train-input error).
 MAX_DISTANCE_DM = 60000      # 6 km
@@ -73,16 +78,32 @@ class Inputs(NamedTuple):
     overruns: int = 0    # consecutive deadline overruns counted by the shell
 
 
+NO_TRACK = -1            # no remembered obstacle
+
+
 class State(NamedTuple):
     mode: int
     node: int
-    latched: bool
+    held: int            # the demand level held (0 none, 1 service, 2 emergency): lowered only on release
     seen: int            # bit i: channel i has been fresh at least once
-    disagree: tuple      # per module: consecutive cycles of ABSENT/PRESENT disagreement
+    disagree: tuple      # per module: ABSENT/PRESENT disagreement cycles not yet cleared by a calm spell
     healthy: int         # consecutive error-free cycles
     cycle: int
     error_cycles: int
-    calm: int = 0        # cycles in a row without an emergency cause while the emergency is held
+    calm: int = 0        # cycles in a row in which the held demand could have been lowered
+    agree: tuple = (0, 0, 0)  # per module: consecutive cycles without disagreement (clears `disagree`)
+    table_held: int = 0  # the table's demand held while its obstacle is in the table's zones
+    track_near: int = NO_TRACK   # remembered obstacle, worst case (nearest), in 1e-5 m (cm/s x ms)
+    track_far: int = NO_TRACK    # the remembered position less the train's least travel (< 0: passed)
+    track_closing: int = 0       # the remembered obstacle's own speed towards the train, cm/s (>= 0)
+    track_age_ms: int = 0        # age of the report the remembered distance came from
+    track_cycles: int = 0        # cycles since the obstacle was last voted
+    track_absent: int = 0        # cycles in a row of positive evidence that it is gone
+
+    @property
+    def latched(self) -> bool:
+        """An emergency is held (the latch of docs/core.md)."""
+        return self.held == 2
 
 
 class Outputs(NamedTuple):
@@ -97,3 +118,6 @@ class Outputs(NamedTuple):
     cycle: int
     error_cycles: int
     warning: bool = False  # the supervision warns (obstacle inside the warning curve, or disputed)
+    track_dm: int = NO_DISTANCE  # remembered obstacle's predicted (worst-case) distance, NO_DISTANCE if none
+    track_cycles: int = 0        # cycles since the remembered obstacle was last voted
+    track_state: int = 0         # TRACK_NONE / SEEN / HELD / CONFIRMING / FORGOTTEN / PASSED

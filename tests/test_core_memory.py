@@ -1,0 +1,180 @@
+"""Obstacle memory (issue 29): an obstacle lost from sight is remembered, predicted worst case,
+supervised by the curves, and forgotten only on evidence (fresh unanimous ABSENT inside the
+declared sensor range for forget_ms) or once the train has passed it. Every test drives the
+real core cycle by cycle through `create()` with a shipped table."""
+from __future__ import annotations
+
+import pytest
+
+from monitor.core.braking import curves
+from monitor.core.config import Config, forget_cycles, gradient_accel_mms2
+from monitor.core.memory import UNITS_PER_DM, near_travel
+from monitor.core.types import (
+    ABSENT, DEGRADED, EMERGENCY, MAINTAIN, NO_DISTANCE, PRESENT, R_ENVELOPE, R_LATCH, R_MEMORY, SERVICE, STATIC,
+    TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Report,
+)
+from tests.test_core_cycle import M1, M2, clear, disagreeing, normal_driver, present, with_channel
+
+V = 3000                  # 30 m/s
+
+
+def near_1500(track_dm: int) -> bool:
+    """150 m, less the worst-case creep of a train that reads 0 cm/s but may accelerate
+    (a T^2 / 2 per cycle: 3.5 mm at the default declaration) over a few dozen cycles."""
+    return 1480 <= track_dm <= 1500
+
+
+def accel(cfg: Config) -> int:
+    return cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille)
+
+
+def test_a_blind_spell_after_an_emergency_keeps_the_emergency_on_the_remembered_obstacle():
+    """The stress search's defect: every channel goes blind during an emergency braking. The
+    remembered obstacle stays inside EBI, so the demand stays emergency (reason memory and
+    envelope, not the latch), and its distance is predicted worst case every cycle."""
+    cfg = Config()
+    d = normal_driver(cfg, M2)
+    ebi = curves(cfg, V, 0, 0, V, 0).ebi_dm
+    out = d.present(ebi - 100, V)
+    assert out.demand == EMERGENCY and out.track_state == TRACK_SEEN and out.track_dm == ebi - 100
+    near = (ebi - 100) * UNITS_PER_DM
+    for k in range(30):                                   # 3 s blind, far longer than the release confirmation
+        near -= near_travel(V, cfg.speed_error_permille, accel(cfg), 0, cfg.period_ms)
+        out = d.clear(V)
+        assert out.demand == EMERGENCY, k
+        assert out.reasons & R_MEMORY and out.reasons & R_ENVELOPE and not out.reasons & R_LATCH
+        assert out.track_dm == near // UNITS_PER_DM and out.distance_dm == NO_DISTANCE
+        assert out.track_state == TRACK_CONFIRMING and out.track_cycles == k + 1
+
+
+def test_the_track_is_forgotten_at_exactly_the_confirmation_time_and_a_stale_cycle_restarts_it():
+    cfg = Config(forget_ms=1250)                          # 13 cycles (rounded up)
+    n = forget_cycles(cfg)
+    assert n == 13
+    d = normal_driver(cfg, M1)
+    d.present(1500, 0)                                    # 150 m ahead of a train at standstill
+    for k in range(5):
+        assert d.clear(0).track_state == TRACK_CONFIRMING
+    out = d.cycle(with_channel(clear(d.tick), 3, None), 0)    # one channel silent: no evidence
+    assert out.track_state == TRACK_HELD and near_1500(out.track_dm)
+    for k in range(n - 1):
+        out = d.clear(0)
+        assert out.track_state == TRACK_CONFIRMING and near_1500(out.track_dm), k
+    out = d.clear(0)
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == NO_DISTANCE
+    assert d.clear(0).track_state == TRACK_NONE
+
+
+@pytest.mark.parametrize("picture", ["disputed", "degraded"])
+def test_no_evidence_while_the_picture_is_disputed_or_degraded(picture):
+    cfg = Config()
+    d = normal_driver(cfg, M1)
+    d.present(1500, 0)
+    for _ in range(3 * forget_cycles(cfg)):
+        reports = with_channel(clear(d.tick), 2, Report(DEGRADED, 0, 0, STATIC, d.tick)) if picture == "degraded" \
+            else disagreeing(d.tick, 30000)
+        out = d.cycle(reports, 0)
+        assert out.track_state in (TRACK_HELD, TRACK_SEEN) and near_1500(out.track_dm)
+
+
+def test_absence_beyond_the_declared_sensor_range_is_no_evidence():
+    cfg = Config(sensor_range_dm=1000)
+    d = normal_driver(cfg, M1)
+    d.present(1500, 0)
+    for _ in range(2 * forget_cycles(cfg)):
+        out = d.clear(0)
+        assert out.track_state == TRACK_HELD and near_1500(out.track_dm)
+    d.present(900, 0)                                     # seen again inside the range
+    for _ in range(forget_cycles(cfg) - 1):
+        assert d.clear(0).track_state == TRACK_CONFIRMING
+    assert d.clear(0).track_state == TRACK_FORGOTTEN
+
+
+def test_a_passed_position_is_forgotten_when_the_train_s_least_travel_takes_it_beyond():
+    """The train keeps running (a train that does not brake as declared, or a track beside
+    the line): the track is forgotten once the least possible travel passes it."""
+    cfg = Config(emergency_release=1, sensor_range_dm=1)  # no evidence can count: only passing forgets
+    d = normal_driver(cfg, M1)
+    d.present(300, 1000)                                  # 30 m ahead at 10 m/s
+    least = 1000 * (1000 - cfg.speed_error_permille) // 1000 * cfg.period_ms \
+        - (-(-accel(cfg) * cfg.period_ms ** 2 // 20000))
+    far, k = 300 * UNITS_PER_DM, 0
+    while True:
+        far -= least
+        out = d.clear(1000)
+        k += 1
+        if far < 0:
+            break
+        assert out.track_state == TRACK_HELD, k
+    assert out.track_state == TRACK_PASSED and out.track_dm == NO_DISTANCE
+    assert k == 300 * UNITS_PER_DM // least + 1
+
+
+def test_an_oncoming_obstacle_keeps_closing_while_the_train_stands():
+    cfg = Config()
+    d = normal_driver(cfg, M2)
+    d.cycle(present(d.tick, 3000, closing=2000), 0)       # closing at 20 m/s, the train stands
+    step = near_travel(0, cfg.speed_error_permille, accel(cfg), 2000, cfg.period_ms)
+    out = d.clear(0)
+    assert out.track_dm == (3000 * UNITS_PER_DM - step) // UNITS_PER_DM
+    out = d.clear(0)
+    assert out.track_dm == (3000 * UNITS_PER_DM - 2 * step) // UNITS_PER_DM
+
+
+def test_a_receding_obstacle_is_remembered_as_stopped():
+    d = normal_driver(Config(), M2)
+    d.cycle(present(d.tick, 3000, closing=-500), 0)       # receding at 5 m/s: taken to stop at once
+    for _ in range(5):
+        assert 2990 <= d.clear(0).track_dm <= 3000
+
+
+def test_a_disputed_sighting_never_creates_a_track_and_a_farther_one_never_hides_a_nearer_track():
+    d = normal_driver(Config(), M1)
+    out = d.cycle(disagreeing(d.tick, 1200), 0)
+    assert out.track_state == TRACK_NONE and out.track_dm == NO_DISTANCE
+    d.present(1500, 0)
+    out = d.cycle(disagreeing(d.tick, 2500), 0)           # one channel sees something farther
+    assert near_1500(out.track_dm) and out.reasons & R_MEMORY
+    out = d.cycle(disagreeing(d.tick, 1200), 0)           # a nearer disputed one brings it nearer
+    assert out.track_dm == 1200
+    out = d.present(2500, 0)                              # every module sees it farther: replaced
+    assert out.track_dm == 2500 and not out.reasons & R_MEMORY
+
+
+def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():
+    """A remembered obstacle beyond SBI no longer demands: a held emergency is released after
+    the confirmation cycles although the obstacle is still remembered."""
+    cfg = Config()
+    c = curves(cfg, V, 0, 0, V, 0)
+    d = normal_driver(cfg, M1)
+    d.cycle(with_channel(clear(d.tick), 0, Report(PRESENT, c.ebi_dm - 5, V, STATIC, d.tick)), V)   # a dispute inside EBI
+    assert d.state.held == EMERGENCY
+    out = d.present(c.sbi_dm + 400, 1000)                # confirmed, far beyond SBI at 10 m/s: calm 1
+    assert out.track_state == TRACK_SEEN and out.demand == EMERGENCY
+    for k in range(cfg.release_confirm_cycles - 2):
+        out = d.clear(1000)
+        assert out.demand == EMERGENCY and out.reasons & R_LATCH, k
+    out = d.clear(1000)
+    assert out.demand < EMERGENCY and out.track_state == TRACK_CONFIRMING
+
+
+def test_the_table_s_service_is_held_while_its_obstacle_is_in_the_table_s_zones():
+    """Issue 29 item 6: what the table raised is lowered only when its obstacle (voted or
+    remembered) has left the table's zones, so a wavering belief cannot toggle the brake."""
+    from monitor.core.table import decode, encode
+
+    t = decode(M1)
+    Z = len(t.header["observations"])
+    # node 0 maintains, node 1 service-brakes; any obstacle sends it to node 1, every clear
+    # picture back to node 0: without the hold the demand would toggle with the picture
+    table = encode({**t.header, "start": 0}, [MAINTAIN, SERVICE], [[0] + [1] * (Z - 1)] * 2)
+    cfg = Config()
+    d = normal_driver(cfg, table)
+    c = curves(cfg, 1000, 0, 0, 1000, 0)
+    dist = c.warning_dm + 2000                            # in the table's zones, beyond every curve
+    demands = []
+    for k in range(40):
+        out = d.present(dist, 1000) if k % 2 == 0 else d.clear(1000)
+        demands.append(out.demand)
+    assert demands[0] == SERVICE and set(demands) == {SERVICE}
+    assert d.clear(0).demand == MAINTAIN                  # standstill lets it go
