@@ -27,6 +27,8 @@ BRAKE_DEMAND_ID = 0x10
 OBSTACLE_IDS = tuple(range(0x20, 0x26))     # channel i of module i // 2
 TRAIN_STATE_ID = 0x30
 MONITOR_STATUS_ID = 0x40
+MONITOR_TRACK_ID = 0x41                     # the remembered obstacle, right after MonitorStatus
+OUTPUT_IDS = (BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID)   # what the monitor sends, in order
 FRAME_LENGTH = 8
 INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor reads (rate-checked)
 
@@ -100,6 +102,7 @@ class Receiver:
     train_tick: Optional[int] = None
     demand: Optional[dict] = None          # newest BrakeDemand (for the player and replay)
     status: Optional[dict] = None          # newest MonitorStatus
+    track: Optional[dict] = None           # newest MonitorTrack
     accepted: int = 0
     rejected: Tally = field(default_factory=Tally)
     senders: dict = field(default_factory=dict)
@@ -193,6 +196,8 @@ class Receiver:
             self.demand = dict(raw, tick=tick)
         elif frame_id == MONITOR_STATUS_ID:
             self.status = dict(raw, tick=tick)
+        elif frame_id == MONITOR_TRACK_ID:
+            self.track = dict(raw, tick=tick)
         return msg.name
 
 

@@ -23,11 +23,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Optional
 
-from .codec import BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID
+from .codec import OBSTACLE_IDS, OUTPUT_IDS, TRAIN_STATE_ID
 
 KINDS = ("classical", "extended", "fd", "remote", "error")
-MONITORED_IDS = (BRAKE_DEMAND_ID, *OBSTACLE_IDS, TRAIN_STATE_ID, MONITOR_STATUS_ID)
-OUTPUT_IDS = (BRAKE_DEMAND_ID, MONITOR_STATUS_ID)
+# the monitor's own output IDs are monitored too: a frame there is another sender's (foreign_output)
+MONITORED_IDS = tuple(sorted((*OBSTACLE_IDS, TRAIN_STATE_ID, *OUTPUT_IDS)))
 _MONITORED = frozenset(MONITORED_IDS)
 
 # linux/can/error.h: error class bits in the identifier, controller details in data[1]

@@ -3,7 +3,9 @@
 Every period it reads the newest valid BrakeDemand (a demand older than three periods, or
 none at all, is read as emergency: the train fails safe), moves the train (brake force
 building up over `brake_buildup_s`), and sends TrainState and one ObstacleReport per channel
-with Gaussian distance noise, missed detections and the scenario's injected faults.
+with Gaussian distance noise, missed detections and the scenario's injected faults. An
+obstacle is on the track from its `appear_s` until its `leave_s`: only then can the sensors
+see it and the train hit it.
 
 The train waits at the entry of the section (speed 0) until the monitor reports NORMAL
 with no demand, as a train waits for its protection system, then enters at its speed.
@@ -21,7 +23,7 @@ import can
 from monitor.core.types import ABSENT, PRESENT, Report
 
 from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals
-from .scenario import OBSTACLE_TYPES, Scenario
+from .scenario import CHANNEL_FREE_KINDS, OBSTACLE_TYPES, Scenario
 
 STALE_DEMAND_PERIODS = 3
 STALE_REPORT_PERIODS = 10
@@ -64,10 +66,10 @@ class Player:
 
     # ------------------------------------------------------------------ world
     def obstacle_distance(self) -> Optional[tuple[float, object]]:
-        """(distance, spec) of the nearest obstacle present ahead, None if none."""
+        """(distance, spec) of the nearest obstacle on the track, None if none."""
         best = None
         for o in self.scenario.obstacles:
-            if self.t < o.appear_s:
+            if not o.there(self.t):
                 continue
             pos = o.position_m + o.speed_mps * (self.t - o.appear_s)
             d = pos - self.position
@@ -112,16 +114,17 @@ class Player:
         sigma = s.noise_sigma_m * (50.0 if self.active("noise_burst", ch) else 1.0)
         rng = self.rngs[ch]
         noisy = max(0.0, d + rng.gauss(0.0, sigma)) if sigma > 0 else d
-        missed = rng.random() < s.miss_probability or self.active("missed_detection", ch)
+        missed = rng.random() < s.miss_probability or self.active("missed_detection", ch) or self.active("blind", ch)
         closing = (self.speed if self.started else 0.0) - spec.speed_mps
         rep = Report(PRESENT, min(60000, round(noisy * 10)), max(-15000, min(15000, round(closing * 100))),
                      OBSTACLE_TYPES.index(spec.type), tick)
         return rep._replace(status=ABSENT, distance_dm=0) if missed else rep
 
     def active(self, kind: str, ch: int) -> bool:
+        """A `kind` fault hits channel `ch` now (a channel-free fault, blind, hits every one)."""
         for f in self.scenario.faults:
-            if f.kind == kind and f.channel == ch and f.start_s <= self.t < f.end_s:
-                self.faults_injected.add((f.kind, f.channel))
+            if f.kind == kind and (f.channel == ch or kind in CHANNEL_FREE_KINDS) and f.start_s <= self.t < f.end_s:
+                self.faults_injected.add((f.kind, ch))
                 return True
         return False
 
@@ -216,7 +219,8 @@ class Player:
             result = "incomplete"
         elif saw_obstacle:
             # "avoided": an obstacle was there, no collision, but the train never stood still
-            result = "stopped" if self.stop_margin is not None else "avoided"
+            # ("stopped" without a margin: it stood after the obstacle had left the track)
+            result = "stopped" if self.stop_margin is not None or self.speed == 0.0 else "avoided"
         else:
             result = "no_obstacle"
         return {

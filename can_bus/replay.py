@@ -31,7 +31,7 @@ from typing import Iterable, Iterator, Optional
 from monitor.core import cycle as core
 
 from .logfile import LogError, LogFrame, read
-from .runner import CycleRecord, MonitorCore
+from .runner import CycleRecord, MonitorCore, TrackTally
 
 ReplayError = LogError     # the CLI's name for a log that cannot be replayed
 Decision = CycleRecord     # a replayed cycle is recorded exactly like a live one
@@ -50,6 +50,7 @@ class Segment:
 
 @dataclass
 class ReplayStats:
+    period_ms: int = 100
     frames: int = 0
     cycles: int = 0
     accepted: int = 0
@@ -64,6 +65,10 @@ class ReplayStats:
     anomaly_counts: Counter = field(default_factory=Counter)
     recorded_demands: int = 0
     agreeing: int = 0
+    track: TrackTally = field(init=False)      # the remembered obstacle, cycle by cycle
+
+    def __post_init__(self) -> None:
+        self.track = TrackTally(self.period_ms)
 
     def absorb(self, mon: MonitorCore) -> None:
         """Add a finished segment's counters."""
@@ -88,6 +93,7 @@ class ReplayStats:
             "time_anomaly_lines": [{"line": ln, "kind": k, "jump_s": round(j, 6), "action": a}
                                    for ln, k, j, a in self.anomalies],
             "recorded_demands": self.recorded_demands,
+            "track": self.track.as_dict(),
         }
         if self.recorded_demands:
             out["agreement_with_recorded"] = self.agreeing / self.recorded_demands
@@ -108,7 +114,7 @@ class Replay:
         self.max_gap_s = max_gap_s
         self.on_time_error = on_time_error
         self.source = source
-        self.stats = ReplayStats()
+        self.stats = ReplayStats(self.period)
         self._recent: dict = {}      # tick -> demand of the last two cycles (agreement)
         self._pending: dict = {}     # tick -> recorded levels waiting for that cycle
 
@@ -167,6 +173,7 @@ class Replay:
         for tick in range(first, last + 1, self.period):
             _, rec = mon.decide(tick)
             self.stats.cycles += 1
+            self.stats.track.add(rec)
             self._decided(tick, rec.demand)
             yield rec
 

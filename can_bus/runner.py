@@ -3,8 +3,9 @@
 Every period (default 100 ms) the runner hands the core the newest valid report of each
 channel with the tick it arrived, the newest TrainState (None once it is older than the
 channel timeout, which the core reads as a train-input error), and the number of
-consecutive deadline overruns; then it sends BrakeDemand and MonitorStatus. A cycle that
-ends after its deadline is an overrun; `max_overruns` in a row put the core in SAFE_STOP.
+consecutive deadline overruns; then it sends BrakeDemand, MonitorStatus and MonitorTrack (the
+remembered obstacle). A cycle that ends after its deadline is an overrun; `max_overruns` in a
+row put the core in SAFE_STOP.
 
 The receive path and the core step live in `MonitorCore`, which knows no bus and no
 clock: the live runner feeds it frames from the bus, `railguard replay` frames from a log,
@@ -23,10 +24,15 @@ import can
 from cantools.autosar.end_to_end import check_profile2_crc
 
 from monitor.core import cycle as core
-from monitor.core.types import EMERGENCY, NO_DISTANCE, R_PERCEPTOR, R_SAFE_STOP, R_STALE, Inputs, Outputs
+from monitor.core.types import (
+    EMERGENCY, NO_DISTANCE, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD,
+    TRACK_NONE, TRACK_PASSED, Inputs, Outputs,
+)
 
 from . import frames
-from .codec import BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, Receiver, Sender, data_id, database
+from .codec import (
+    BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, MONITOR_TRACK_ID, Receiver, Sender, data_id, database,
+)
 
 FOREIGN_HOLD_CYCLES = 10   # ForeignOutput stays set this many cycles after the last foreign frame
 SEND_RETRY_S = 0.005       # a full transmit queue is retried this long, then counted as a failure
@@ -38,7 +44,9 @@ FLAG_MODULES = 0b111              # bit m: module m+1 is in error
 FLAG_SYSTEM_ERROR = 1 << 3
 FLAG_STALE = 1 << 4
 FLAG_PERCEPTOR = 1 << 5
-NO_DISTANCE_RAW = 65535           # VotedDistance "no_distance"
+NO_DISTANCE_RAW = 65535           # VotedDistance "no_distance", TrackDistance "no_track"
+TRACK_AGE_MAX = 65535             # MonitorTrack.TrackAge, 0.1 s: saturates at 6553.5 s
+UNSEEN = (TRACK_HELD, TRACK_CONFIRMING)   # track states of an obstacle remembered while no channel shows it
 
 
 @dataclass
@@ -56,6 +64,59 @@ class CycleRecord:
     speed_cms: Optional[int]
     warning: bool = False
     foreign_output: bool = False     # another sender used the monitor's output IDs lately
+    track_dm: int = NO_DISTANCE      # the remembered obstacle's predicted distance (NO_DISTANCE: none)
+    track_cycles: int = 0            # cycles since it was last voted
+    track_state: int = TRACK_NONE    # monitor.core.types.TRACK_NAMES
+
+
+def held_unseen(rec) -> bool:
+    """The cycle's track is remembered while no channel shows it (held, or confirming its absence)."""
+    return rec.track_state in UNSEEN
+
+
+@dataclass
+class TrackTally:
+    """The remembered obstacle over a run, added one cycle at a time (constant memory: the live
+    summary and the streamed replay use it alike). `held_*` is the time a track was remembered
+    while no channel showed it (track state held or confirming): the longest spell and the
+    total; `forgotten` counts tracks dropped on evidence, `passed` those the train ran past;
+    `memory_cycles` the cycles whose curves supervised a remembered obstacle (reason `memory`)."""
+
+    period_ms: int
+    held_cycles: int = 0
+    longest_cycles: int = 0
+    forgotten: int = 0
+    passed: int = 0
+    memory_cycles: int = 0
+    spell: int = 0
+
+    def add(self, rec) -> None:
+        if held_unseen(rec):
+            self.spell += 1
+            self.held_cycles += 1
+            self.longest_cycles = max(self.longest_cycles, self.spell)
+        else:
+            self.spell = 0
+        self.forgotten += rec.track_state == TRACK_FORGOTTEN
+        self.passed += rec.track_state == TRACK_PASSED
+        self.memory_cycles += bool(rec.reasons & R_MEMORY)
+
+    def as_dict(self) -> dict:
+        return {"held_longest_s": self.longest_cycles * self.period_ms / 1000,
+                "held_total_s": self.held_cycles * self.period_ms / 1000,
+                "forgotten": self.forgotten, "passed": self.passed, "memory_cycles": self.memory_cycles}
+
+
+def track_columns(recs) -> dict:
+    """monitor.plot.plot_run's track columns from cycle records (live or replayed): the
+    remembered obstacle's predicted distance in m (None: no track) and its state."""
+    return {"track_m": [None if r.track_dm == NO_DISTANCE else r.track_dm / 10 for r in recs],
+            "track_state": [r.track_state for r in recs]}
+
+
+def track_age(cycles: int, period_ms: int) -> int:
+    """MonitorTrack.TrackAge in 0.1 s: `cycles` periods, rounded to the nearest 0.1 s, saturating."""
+    return min((cycles * period_ms + 50) // 100, TRACK_AGE_MAX)
 
 
 @dataclass
@@ -147,7 +208,7 @@ class MonitorCore:
         self.outputs = out
         rec = CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
                           out.module_flags, out.system_error, None if train is None else train.speed_cms,
-                          out.warning, tick <= self.foreign_until)
+                          out.warning, tick <= self.foreign_until, out.track_dm, out.track_cycles, out.track_state)
         return out, rec
 
 
@@ -254,6 +315,9 @@ class MonitorRunner:
                                  "Node": min(out.node, 1023), "ErrorFlags": flags,
                                  "VotedDistance": distance, "TableHash": self.table_hash,
                                  "DeadlineMisses": min(self.deadline_misses, 15)}),
+            (MONITOR_TRACK_ID, {"TrackState": out.track_state, "Memory": int(bool(out.reasons & R_MEMORY)),
+                                "TrackDistance": min(out.track_dm, NO_DISTANCE_RAW),
+                                "TrackAge": track_age(out.track_cycles, self.period)}),
         )
         for frame_id, signals in messages:
             data = self.sender.frame(frame_id, signals)
@@ -280,7 +344,8 @@ class MonitorRunner:
                 time.sleep(0.0005)
 
     def send_final_emergency(self) -> None:
-        """On shutdown: one last emergency demand, so that silence is never read as 'no brake'."""
+        """On shutdown: one last emergency demand, so that silence is never read as 'no brake'
+        (the monitor stops supervising: its MonitorTrack says no track)."""
         last = self.records[-1] if self.records else None
         out = Outputs(EMERGENCY, R_SAFE_STOP, NO_DISTANCE, 0 if last is None else last.node, 3, 0, True, 0,
                       len(self.records) + 1, 0)

@@ -9,10 +9,11 @@ from __future__ import annotations
 from monitor import scenario as _ground
 from monitor.scenario import FaultSpec, ObstacleSpec, Scenario, SensorSpec, TrainSpec, check, refusal
 
-__all__ = ["FAULT_KINDS", "OBSTACLE_TYPES", "FaultSpec", "ObstacleSpec", "Scenario", "ScenarioError", "SensorSpec",
-           "TrainSpec", "check", "load", "parse", "refusal", "shipped_names"]
+__all__ = ["CHANNEL_FREE_KINDS", "FAULT_KINDS", "OBSTACLE_TYPES", "FaultSpec", "ObstacleSpec", "Scenario", "ScenarioError",
+           "SensorSpec", "TrainSpec", "check", "load", "parse", "refusal", "shipped_names"]
 
 FAULT_KINDS = _ground.RUN_FAULT_KINDS
+CHANNEL_FREE_KINDS = _ground.CHANNEL_FREE_KINDS
 OBSTACLE_TYPES = _ground.OBSTACLE_TYPES
 
 

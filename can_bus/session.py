@@ -20,13 +20,13 @@ from typing import Callable, Optional
 import can
 
 from monitor.core import cycle as core
-from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES
+from monitor.core.types import DEMAND_NAMES, MODE_NAMES, NO_DISTANCE, REASON_NAMES, TRACK_NAMES
 
 from . import frames
 from .clock import SimClock, WallClock
 from .logfile import CandumpWriter
 from .player import Player
-from .runner import MonitorRunner
+from .runner import MonitorRunner, TrackTally, held_unseen, track_columns
 from .scenario import Scenario
 
 VIRTUAL_CHANNEL = "railguard"
@@ -128,6 +128,15 @@ def changes_by_cause(records: list) -> dict:
     return out
 
 
+def track_summary(records: list, period_ms: int) -> dict:
+    """The remembered obstacle over the run (runner.TrackTally): longest and total time held
+    while no channel showed it, tracks forgotten on evidence and passed, memory cycles."""
+    tally = TrackTally(period_ms)
+    for rec in records:
+        tally.add(rec)
+    return tally.as_dict()
+
+
 def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Path], plot: Optional[Path],
               recorder_complete: bool = True) -> dict:
     levels = Counter(DEMAND_NAMES[r.demand] for r in runner.records)
@@ -144,6 +153,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "first_emergency_after_init_s": next((r.tick / 1000 for r in runner.records if r.demand == 2 and r.mode != 0),
                                              None),
         "faults_detected": detected_faults(runner),
+        "track": track_summary(runner.records, runner.period),
         "frames_received": runner.frames_received,
         "frames_rejected": runner.receiver.rejected_total,
         "rejects": {k: v for k, v in sorted(runner.receiver.rejected.items()) if v},
@@ -182,7 +192,7 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
         speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
         true_d = None
     return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs],
-                    speed_distance=speed_distance(runner, player))
+                    speed_distance=speed_distance(runner, player), **track_columns(recs))
 
 
 def speed_distance(runner: MonitorRunner, player: Optional[Player]):
@@ -223,14 +233,23 @@ def travelled(t_s: list, speed_mps: list) -> list:
     return out
 
 
-def status_line(rec, player: Optional[Player], bus_state: str = "error_active") -> str:
+def status_line(rec, player: Optional[Player], bus_state: str = "error_active", period_ms: int = 100) -> str:
     speed = f"{(player.speed if player.started else 0.0):5.1f} m/s" if player is not None else (
         "   -     " if rec.speed_cms is None else f"{rec.speed_cms / 100:5.1f} m/s")
     dist = "   none " if rec.distance_dm == NO_DISTANCE else f"{rec.distance_dm / 10:7.1f}"
     return (f"t {rec.tick / 1000:7.1f} s  speed {speed}  voted distance {dist} m  "
             f"demand {DEMAND_NAMES[rec.demand]:<9}  mode {MODE_NAMES[rec.mode]:<9}  node {rec.node}"
+            + track_note(rec, period_ms)
             + ("  FOREIGN SENDER on the monitor's output IDs" if rec.foreign_output else "")
             + ("" if bus_state == "error_active" else f"  bus {bus_state.replace('_', '-')}"))
+
+
+def track_note(rec, period_ms: int) -> str:
+    """The remembered obstacle on the status line, while no channel shows it."""
+    if not held_unseen(rec) or rec.track_dm == NO_DISTANCE:
+        return ""
+    return (f"  remembered {rec.track_dm / 10:.1f} m ({TRACK_NAMES[rec.track_state]}, "
+            f"unseen {rec.track_cycles * period_ms / 1000:.1f} s)")
 
 
 class StopOnSignal:
@@ -255,7 +274,7 @@ class StopOnSignal:
 
 
 def reporter(recorder: Recorder, show: Optional[Callable[[str], None]], player: Optional[Player],
-             bus_state: Callable[[], str] = lambda: "error_active") -> Callable:
+             bus_state: Callable[[], str] = lambda: "error_active", period_ms: int = 100) -> Callable:
     """What follows every monitor cycle: the recorder takes the bus's frames (within its
     budget on a real bus) and every tenth cycle shows a status line."""
     count = [0]
@@ -263,7 +282,7 @@ def reporter(recorder: Recorder, show: Optional[Callable[[str], None]], player: 
     def after_cycle(rec) -> None:
         recorder.drain(RECORDER_BUDGET_S)
         if show is not None and count[0] % 10 == 0:
-            show(status_line(rec, player, bus_state()))
+            show(status_line(rec, player, bus_state(), period_ms))
         count[0] += 1
 
     return after_cycle
@@ -287,7 +306,7 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, du
     recorder = Recorder(rec_bus, log_path, clock)
     try:
         player = Player(player_bus, scenario, period)
-        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player))
+        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player, period_ms=period))
         limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
         if duration_s is not None:
             limit = min(limit, max(1, round(duration_s * 1000 / period)))
@@ -338,7 +357,8 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
             player_thread.start()
 
         runner = MonitorRunner(mon_bus, setup, clock,
-                               on_cycle=reporter(recorder, show, player, lambda: runner.monitor.tally.bus_state))
+                               on_cycle=reporter(recorder, show, player, lambda: runner.monitor.tally.bus_state,
+                                                 period))
         cycles = None if duration_s is None else int(duration_s * 1000 / period)
         runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished))
         stop.set()

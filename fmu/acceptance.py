@@ -99,6 +99,7 @@ class Outcome:
     stop_margin_m: float | None
     impact_speed: float
     first_brake_s: float | None
+    demand_changes: int = 0     # from the first brake demand on (the first brake itself counts)
 
     @property
     def collision(self) -> bool:
@@ -171,7 +172,8 @@ def run_cases(loop, params: dict, todo) -> tuple[list[Outcome], float]:
     t0 = time.perf_counter()
     for case in todo:
         res = loop.run(case.train_params(), params, MAX_RUN_S, record=False, until_standstill=True)
-        out.append(Outcome(case, res.outcome, res.stop_margin_m, res.impact_speed, res.first_brake_s))
+        out.append(Outcome(case, res.outcome, res.stop_margin_m, res.impact_speed, res.first_brake_s,
+                           res.demand_changes))
     return out, time.perf_counter() - t0
 
 

@@ -30,7 +30,7 @@ from .variables import MONITOR, TRAIN, parameter_starts
 C_DIR = Path(__file__).resolve().parent / "c"
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2", "-fPIC"]
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}
-TRAIN_TOKEN = "{8c4e810f-3df3-4a00-8276-176fa00ae0b6}"
+TRAIN_TOKEN = "{4b9cae65-a4cc-4688-ac28-c403b5610c64}"
 MONITOR_ID = "railguard_monitor"
 TRAIN_ID = "railguard_train"
 CORE_SOURCES = ["rg_core.c", "rg_sha256.c"]

@@ -26,6 +26,7 @@ from .driver import FmuCallError, Port, close_slave, do_step_function, initializ
 from .variables import CHANNELS, MONITOR, MONITOR_OUTPUTS, TRAIN
 
 MONITOR_PERIOD_S = 0.1
+NO_GAP_M = 1e8          # true_distance at least this: no obstacle on the track (the train FMU gives 1e9)
 DEMAND_DELAY_CYCLES = 1
 
 
@@ -35,7 +36,8 @@ class CosimError(RuntimeError):
 
 @dataclass
 class CosimResult:
-    outcome: str          # collision, struck_at_standstill, stopped, running, no_obstacle
+    outcome: str          # collision, struck_at_standstill, stopped, running, no_obstacle (margin None
+                          # when stopped or running after the obstacle left the track)
     margin_m: float | None
     steps: int
     monitor_cycles: int
@@ -50,6 +52,7 @@ class CosimResult:
     train_params: dict = field(default_factory=dict)
     monitor_params: dict = field(default_factory=dict)
     demand_delay_cycles: int = DEMAND_DELAY_CYCLES
+    demand_changes: int = 0               # changes of the monitor's demand from its first brake demand on
 
     @property
     def realtime_factor(self) -> float:
@@ -242,7 +245,8 @@ class Loop:
         ratio = _check(step_s, demand_delay_cycles)
         self.start(train_params, monitor_params)
         try:
-            res = self._loop(duration_s, step_s, ratio, record, demand_delay_cycles, until_standstill)
+            res = self._loop(duration_s, step_s, ratio, record, demand_delay_cycles, until_standstill,
+                             bool(train_params.get("obstacle.present", True)))
         except FmuCallError as exc:
             raise CosimError(str(exc)) from None
         res.train_params, res.monitor_params = dict(train_params), dict(monitor_params)
@@ -250,14 +254,14 @@ class Loop:
         return res
 
     def _loop(self, duration_s: float, step_s: float, ratio: int, record: bool, delay: int,
-              until_standstill: bool) -> CosimResult:
+              until_standstill: bool, obstacle: bool) -> CosimResult:
         links, monitor, t_in = self.links, self.monitor, self.t_in
         do_train = self.do_train
         n_steps = int(round(duration_s / step_s))
         pending: deque = deque()      # demands computed but not yet delivered to the train
         train_rows, monitor_rows, delivered = [], [], []
         first_brake = stop_margin = None
-        max_demand = 0
+        max_demand = changes = last = 0
         real_values, int_values = self.t_real.values, self.t_int.values
         get_real, get_int = self.t_real.call, self.t_int.call
         speed_i, dist_i = TRAIN_TRACE_REAL.index("true_speed"), TRAIN_TRACE_REAL.index("true_distance")
@@ -282,6 +286,9 @@ class Loop:
                     max_demand = demand
                 if demand and first_brake is None:
                     first_brake = round(t, 6)
+                if demand != last and first_brake is not None:
+                    changes += 1
+                last = demand
             if do_train(t, step_s) > 1:
                 raise CosimError(f"train doStep at t = {t:.2f} s failed")
             get_real()
@@ -301,21 +308,22 @@ class Loop:
         self.t_end.call()
         self.t_collided.call()
         speed, distance = self.t_real.values[speed_i], self.t_real.values[dist_i]
+        if stop_margin is not None and stop_margin >= NO_GAP_M:
+            stop_margin = None                     # it stood with no obstacle on the track
         impact = float(self.t_end.values[0])
         if self.t_collided.values[0]:
             outcome, margin = ("collision" if impact > 0.0 else "struck_at_standstill"), 0.0
             stop_margin = None if impact > 0.0 else stop_margin
-        elif distance >= 1e8:
+        elif not obstacle:
             outcome, margin = "no_obstacle", None
-        elif speed == 0.0:
-            outcome, margin = "stopped", float(distance)
         else:
-            outcome, margin = "running", float(distance)
+            gap = float(distance) if distance < NO_GAP_M else None      # None: it has left the track
+            outcome, margin = ("stopped" if speed == 0.0 else "running"), gap
         columns = ["time_s", *TRAIN_TRACE_REAL, *TRAIN_TRACE_INT, "demand_in", *MONITOR_TRACE]
         rows = [(round((i + 1) * step_s, 6), *train_rows[i], delivered[i // ratio], *monitor_rows[i // ratio])
                 for i in range(len(train_rows))]
         return CosimResult(outcome, margin, steps, len(monitor_rows), steps * step_s, wall, rows, columns,
-                           first_brake, max_demand, stop_margin, impact)
+                           first_brake, max_demand, stop_margin, impact, demand_changes=changes)
 
 
 def write_csv(result: CosimResult, path: Path) -> Path:
@@ -337,7 +345,7 @@ def speed_distance(result: CosimResult):
     c = {name: i for i, name in enumerate(result.columns)}
     tp = result.train_params
     obstacle = bool(tp.get("obstacle.present", True))
-    rows = [r for r in result.rows if r[c["true_distance"]] < 1e8] if obstacle else result.rows
+    rows = [r for r in result.rows if r[c["true_distance"]] < NO_GAP_M] if obstacle else result.rows
     return SpeedDistance(
         config=config_from_parameters(result.monitor_params),
         distance_m=[r[c["true_distance"]] for r in rows] if obstacle else None,
@@ -354,7 +362,7 @@ def plot(result: CosimResult, path: Path, title: str) -> Path:
 
     c = {name: i for i, name in enumerate(result.columns)}
     t = [r[0] for r in result.rows]
-    dist = [r[c["true_distance"]] if r[c["true_distance"]] < 1e8 else None for r in result.rows]
+    dist = [r[c["true_distance"]] if r[c["true_distance"]] < NO_GAP_M else None for r in result.rows]
     voted = [None if r[c["voted_distance_dm"]] == 65535 else r[c["voted_distance_dm"]] / 10 for r in result.rows]
     return plot_run(path, title, t, [r[c["true_speed"]] for r in result.rows], dist, voted,
                     [r[c["brake_demand"]] for r in result.rows], [r[c["mode"]] for r in result.rows],

@@ -5,9 +5,9 @@ A `monitor.scenario.Scenario` becomes a `CosimScenario`: its [train], its one ob
 [sensors] and its one fault become the train FMU's parameters (every dynamics parameter is
 set, so a scenario is the same world whatever the FMU's own defaults; channel c is the FMU's
 ch{c+1}); its [monitor] and [braking] become the monitor FMU's parameters; its table (the default
-table, m2, when it names none) and demand_delay_cycles are kept. What the train FMU cannot play (more than one
-obstacle or fault, an obstacle appearing late, the bus's frame faults) is refused in one
-line naming the file and the key.
+table, m2, when it names none) and demand_delay_cycles are kept. An obstacle's leave_s is the FMU's
+obstacle.leave_time. What the train FMU cannot play (more than one obstacle or fault, an obstacle
+appearing late, the bus's frame faults) is refused in one line naming the file and the key.
 """
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def train_parameters(scen: _ground.Scenario) -> dict:
     if scen.obstacles:
         o = scen.obstacles[0]
         p.update({"obstacle.position": o.position_m, "obstacle.speed": o.speed_mps,
-                  "obstacle.type": _ground.OBSTACLE_TYPES.index(o.type)})
+                  "obstacle.type": _ground.OBSTACLE_TYPES.index(o.type), "obstacle.leave_time": o.leave_s})
     s = scen.sensors
     p.update({"sensor.range": s.range_m, "sensor.noise_sigma": s.noise_sigma_m,
               "sensor.miss_probability": s.miss_probability, "sensor.seed": s.seed})

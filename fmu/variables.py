@@ -64,13 +64,18 @@ PARAMETER_DOCS = {
     "standstill_margin_dm": "braking declaration: stop at least this far before the obstacle, dm, 0..10000",
     "warning_ms": "the warning curve leads SBI by this time, ms, 0..60000",
     "emergency_release": "1: an emergency is revocable once its cause is gone; 0: held to standstill",
-    "release_confirm_cycles": "cycles in a row without an emergency cause before a revocable release, 1..1000",
+    "release_confirm_cycles": "cycles in a row in which the causes ask for less before a held demand is lowered "
+                              "(an emergency only if revocable), 1..1000",
     "warning_margin_dm": "table zones: warning zone length beyond alpha1, dm",
     "fast_closing_cms": "Model 2: closing speed from which an obstacle is fast, cm/s",
     "safe_reaction": "demand on a system error with a degraded channel or a bad train input: 1 service, 2 emergency",
     "recovery_cycles": "error-free cycles before DEGRADED or SAFE_STOP clear",
     "max_overruns": "consecutive deadline overruns leading to SAFE_STOP (the FMU never overruns), 1..1000",
     "distance_tolerance_dm": "2oo2: two PRESENT distances further apart than this raise the module flag, dm",
+    "forget_ms": "obstacle memory: fresh unanimous ABSENT inside the sensor range this long forgets a remembered "
+                 "obstacle, ms (rounded up to whole cycles), 1..600000",
+    "sensor_range_dm": "obstacle memory: the sensors' declared range; absence counts as evidence only inside it, dm, "
+                       "1..60000",
 }
 assert set(PARAMETER_DOCS) == set(Config._fields) - {"period_ms", "topology"}, "a Config field is not a parameter"
 CONFIG_PARAMETERS = tuple(f for f in Config._fields if f in PARAMETER_DOCS)   # in Config's order
@@ -115,7 +120,9 @@ def _monitor() -> list[Var]:
             "0 none, 1 service, 2 emergency (emergency until every channel has been fresh once)"),
         Var("reasons", "Integer", "output", "discrete", None, None,
             "reason bits: 1 table, 2 envelope (inside EBI), 4 system_error, 8 latch, 16 init, 32 safe_stop, 64 stale, "
-            "128 perceptor, 256 deadline, 512 train_input, 1024 sbi (inside SBI), 2048 warning, 4096 dispute"),
+            "128 perceptor, 256 deadline, 512 train_input, 1024 sbi (inside SBI), 2048 warning, 4096 dispute, "
+            "8192 memory (the curves supervise a remembered obstacle no channel shows); 8 latch: a demand held that no "
+            "current cause asks for"),
         Var("voted_distance_dm", "Integer", "output", "discrete", None, None, "voted obstacle distance in dm; 65535: none"),
         Var("node", "Integer", "output", "discrete", None, None, "controller node of the policy table"),
         Var("mode", "Integer", "output", "discrete", None, None, "0 INIT, 1 NORMAL, 2 DEGRADED, 3 SAFE_STOP"),
@@ -126,6 +133,12 @@ def _monitor() -> list[Var]:
         Var("error_cycles", "Integer", "output", "discrete", None, None, "cycles with an error or a stale channel"),
         Var("warning", "Boolean", "output", "discrete", None, None,
             "the supervision warns: voted obstacle inside the warning curve, or channels dispute an obstacle"),
+        Var("track_dm", "Integer", "output", "discrete", None, None,
+            "remembered obstacle's predicted (worst-case, nearest) distance in dm; 65535: none"),
+        Var("track_cycles", "Integer", "output", "discrete", None, None,
+            "cycles since the remembered obstacle was last voted (0 while it is seen)"),
+        Var("track_state", "Integer", "output", "discrete", None, None,
+            "obstacle memory this cycle: 0 none, 1 seen, 2 held, 3 confirming its absence, 4 forgotten, 5 passed"),
         Var("period_ms", "Integer", "output", "constant", _CFG.period_ms, None, "fixed internal cycle period, ms"),
         Var("table.model", "String", "output", "constant", "", None, "model the policy table was solved for"),
         Var("table.sha256", "String", "output", "constant", "", None,
@@ -172,6 +185,9 @@ def _train() -> list[Var]:
         Var("obstacle.position", "Real", P, "fixed", 500.0, "m", "obstacle position at t = 0, measured from the train's start", 0.0),
         Var("obstacle.speed", "Real", P, "fixed", 0.0, "m/s", "obstacle speed along the track (0: static)"),
         Var("obstacle.type", "Integer", P, "fixed", 0, None, "0 static, 1 dynamic, 2 train"),
+        Var("obstacle.leave_time", "Real", P, "fixed", 1e9, "s",
+            "the obstacle leaves the track at this time (a vehicle clearing a level crossing): from then on the "
+            "sensors do not see it and the train cannot reach it; 1e9: never", 0.0),
         Var("sensor.range", "Real", P, "fixed", 400.0, "m", "sensors see an obstacle closer than this", 0.0),
         Var("sensor.noise_sigma", "Real", P, "fixed", 0.3, "m", "standard deviation of the Gaussian distance noise", 0.0),
         Var("sensor.miss_probability", "Real", P, "fixed", 0.0, None, "probability that a channel misses a visible obstacle in a sample", 0.0, 1.0),

@@ -1,5 +1,7 @@
 """The plotting room every shell draws runs with (can_bus's `railguard run`, fmu's co-simulation,
-the CLI's replay). One figure of a run (PNG): speed, distance, demand and mode over time, and beside them
+the CLI's replay). One figure of a run (PNG): speed, distance, demand and mode over time (with the
+remembered obstacle, DESIGN.md section 14: its predicted distance dashed, the cycles it was held
+while no channel showed it shaded), and beside them
 the speed-distance diagram ETCS users know: the braking curves EBD, EBI, SBI and warning
 for the run's obstacle (monitor.core.braking) with the train's trajectory through them,
 coloured by the demand it was under."""
@@ -9,12 +11,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from monitor.core.config import Config
-from monitor.core.types import DEMAND_NAMES, MODE_NAMES
+from monitor.core.types import (
+    DEMAND_NAMES, MODE_NAMES, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED,
+)
 
 CURVE_STYLE = (("ebd_dm", "EBD", "black", "-"), ("ebi_dm", "EBI", "tab:red", "-"),
                ("sbi_dm", "SBI", "tab:orange", "--"), ("warning_dm", "warning", "goldenrod", ":"))
 # trajectory colour by what the monitor asked for: none, warning, service, emergency
 STATE_STYLE = (("no demand", "tab:blue"), ("warning", "goldenrod"), ("service", "tab:orange"), ("emergency", "tab:red"))
+TRACK_COLOR = "tab:purple"
+HELD_LABEL = "track held, no channel shows it"
+# a track dropped in this cycle: marker and legend text
+TRACK_ENDS = ((TRACK_FORGOTTEN, "X", "track forgotten (evidence)"), (TRACK_PASSED, "^", "track passed"))
 
 
 @dataclass
@@ -101,8 +109,47 @@ def draw_speed_distance(ax, sd: SpeedDistance) -> None:
     ax.legend(loc="lower left", fontsize=8)
 
 
+def held_spans(t_s, track_state) -> list:
+    """(start, end) times of the runs of cycles whose track was held or confirming (remembered
+    while no channel showed it); a run ends where the next cycle begins."""
+    spans, start = [], None
+    n = len(t_s)
+    for i in range(n + 1):
+        held = i < n and track_state[i] in (TRACK_HELD, TRACK_CONFIRMING)
+        if held and start is None:
+            start = i
+        elif not held and start is not None:
+            end = t_s[i] if i < n else t_s[-1] + (t_s[-1] - t_s[-2] if n > 1 else 0.1)
+            spans.append((t_s[start], end))
+            start = None
+    return spans
+
+
+def draw_track(ax, t_s, track_m, track_state, label: bool = True) -> None:
+    """The remembered obstacle on a time axis: its predicted distance (dashed steps, if
+    `track_m` is given) and, if `track_state` is, the cycles it was held unseen (shaded) and
+    where it was dropped (markers)."""
+    if track_m is not None:
+        ax.step(t_s, [float("nan") if d is None else d for d in track_m], where="post", ls="--", lw=1.2,
+                color=TRACK_COLOR, label="remembered distance (predicted)" if label else None)
+    if track_state is None:
+        return
+    for k, (start, end) in enumerate(held_spans(t_s, track_state)):
+        ax.axvspan(start, end, color=TRACK_COLOR, alpha=0.12, lw=0, label=HELD_LABEL if label and k == 0 else None)
+    if track_m is None:
+        return
+    for state, marker, text in TRACK_ENDS:
+        at = [i for i, s in enumerate(track_state) if s == state]
+        if at:
+            # dropped: no distance this cycle, so the marker sits where the track was the cycle before
+            ys = [next((track_m[j] for j in range(i - 1, -1, -1) if track_m[j] is not None), 0.0) for i in at]
+            ax.plot([t_s[i] for i in at], ys, marker, color=TRACK_COLOR, ms=7, label=text if label else None)
+
+
 def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, demand, mode,
-             speed_distance: SpeedDistance | None = None) -> Path:
+             speed_distance: SpeedDistance | None = None, track_m=None, track_state=None) -> Path:
+    """`track_m` is the remembered obstacle's predicted distance per cycle (None: no track),
+    `track_state` its state (monitor.core.types.TRACK_NAMES); both optional."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -121,6 +168,8 @@ def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, 
     if distance_m is not None:
         axes[1].plot(t_s, [float("nan") if d is None else d for d in distance_m], label="true distance", color="tab:gray")
     axes[1].plot(t_s, [float("nan") if d is None else d for d in voted_m], ".", ms=2, label="voted distance", color="tab:orange")
+    draw_track(axes[1], t_s, track_m, track_state)
+    draw_track(axes[2], t_s, None, track_state, label=False)
     axes[1].set_ylabel("distance (m)")
     axes[1].legend(loc="upper right", fontsize=8)
     axes[2].step(t_s, demand, where="post", color="tab:red")

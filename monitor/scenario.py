@@ -37,10 +37,10 @@ PLAYERS = ("run", "cosim", "campaign")
 OBSTACLE_TYPES = ("static", "dynamic", "train")
 TRACKS = ("normal", "slippery")
 BRAKES = ("normal", "degraded")
-# fault kinds each player injects (frame faults exist only on the bus; degraded, nan_distance
-# and blind only in the train FMU)
+# fault kinds each player injects (frame faults exist only on the bus; degraded and nan_distance
+# only in the train FMU)
 RUN_FAULT_KINDS = ("silence", "stuck", "bad_crc", "counter_freeze", "counter_jump", "wrong_length", "babble",
-                   "contradiction", "noise_burst", "missed_detection", "stale_timestamp")
+                   "contradiction", "noise_burst", "missed_detection", "stale_timestamp", "blind")
 COSIM_FAULT_KINDS = ("silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance",
                      "contradiction", "blind")
 FAULT_KINDS = RUN_FAULT_KINDS + tuple(k for k in COSIM_FAULT_KINDS if k not in RUN_FAULT_KINDS)
@@ -108,6 +108,11 @@ class ObstacleSpec:
     appear_s: float = 0.0               # after the train's entry
     speed_mps: float = 0.0              # along the track, positive in the train's direction (< 0: oncoming)
     type: str = "static"
+    leave_s: float = FOREVER_S          # it leaves the track then (after the train's entry; FOREVER_S: never)
+
+    def there(self, t: float) -> bool:
+        """On the track at `t` seconds after the train's entry: from appear_s until leave_s."""
+        return self.appear_s <= t < self.leave_s
 
 
 @dataclass(frozen=True)
@@ -167,7 +172,8 @@ LIMITS = {
     "gradient_permille": (-60.0, 60.0), "speed_error": (0.0, 0.5), "mass_kg": (1.0, 1e8), "davis_a_n": (0.0, 1e7),
     "davis_b_n_per_mps": (0.0, 1e6), "davis_c_n_per_mps2": (0.0, 1e5), "slippery_factor": (0.0, 1.0),
     "degraded_factor": (0.0, 1.0),
-    "position_m": (0.0, 100000.0), "appear_s": (0.0, 86400.0), "obstacle_speed_mps": (-120.0, 120.0),
+    "position_m": (0.0, 100000.0), "appear_s": (0.0, 86400.0), "leave_s": (0.0, FOREVER_S),
+    "obstacle_speed_mps": (-120.0, 120.0),
     "range_m": (0.0, 6000.0), "noise_sigma_m": (0.0, 1000.0), "miss_probability": (0.0, 1.0),
     "seed": (0, 2**31 - 1), "channel": (0, 5), "start_s": (0.0, 86400.0), "end_s": (0.0, FOREVER_S),
     "rate": (1, 200),
@@ -259,7 +265,12 @@ class _Reader:
             else:
                 out[key] = self.number(where, key, value, "obstacle_speed_mps" if key == "speed_mps" else None,
                                        open_low=key == "position_m")
-        return ObstacleSpec(**out)
+        return self.leaves_after_appearing(where, ObstacleSpec(**out))
+
+    def leaves_after_appearing(self, where: str, o: ObstacleSpec) -> ObstacleSpec:
+        if o.leave_s <= o.appear_s:
+            self.fail("", f"{where}.leave_s = {o.leave_s:g}: must be after appear_s = {o.appear_s:g}")
+        return o
 
     def sensors(self, data) -> SensorSpec:
         data = self.table("sensors", data)
@@ -438,7 +449,9 @@ def check(scen: Scenario) -> None:
         r.string(f"obstacles[{i}]", "type", o.type, OBSTACLE_TYPES)
         r.number(f"obstacles[{i}]", "position_m", o.position_m, open_low=True)
         r.number(f"obstacles[{i}]", "appear_s", o.appear_s)
+        r.number(f"obstacles[{i}]", "leave_s", o.leave_s)
         r.number(f"obstacles[{i}]", "speed_mps", o.speed_mps, "obstacle_speed_mps")
+        r.leaves_after_appearing(f"obstacles[{i}]", o)
     s = scen.sensors
     r.number("sensors", "range_m", s.range_m, open_low=True)
     r.number("sensors", "noise_sigma_m", s.noise_sigma_m)
@@ -522,6 +535,9 @@ def refusal(scen: Scenario, player: str) -> Optional[str]:
             return "sensors.miss_probability: the campaign's misses are its faults; it plays 0 only"
         if scen.faults:
             return "faults[0]: the campaign injects its own faults; it plays scenarios without [[faults]]"
+        for i, o in enumerate(scen.obstacles):
+            if o.leave_s != FOREVER_S:
+                return f"obstacles[{i}].leave_s: the campaign's obstacles stay on the track; it plays no leave_s"
         if monitor_parameters(scen):
             return f"{'braking' if scen.braking is not None else 'monitor'}: the campaign configures the monitor with --braking"
         return None

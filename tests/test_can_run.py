@@ -19,8 +19,8 @@ from can_bus import scenario as scenarios
 from can_bus import session
 from can_bus.clock import SimClock
 from can_bus.codec import (
-    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver, Sender,
-    report_signals,
+    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
+    Sender, report_signals,
 )
 from can_bus.runner import MonitorRunner
 from railguard.main import main
@@ -28,7 +28,7 @@ from monitor.core import cycle as core
 from monitor.core.config import Config
 from monitor.core.types import (
     ABSENT, EMERGENCY, INIT, MAINTAIN, PRESENT, R_DEADLINE, R_PERCEPTOR, R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR,
-    SAFE_STOP, Report,
+    SAFE_STOP, TRACK_NONE, Report,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -189,6 +189,22 @@ def test_moving_obstacle_is_played_and_not_hit(runs, table):
     assert s["scenario_s"] == pytest.approx(90.0)
 
 
+def test_the_vehicle_leaving_the_crossing_and_its_blind_contrast_are_played(runs):
+    """The catalogue's pair (docs/scenarios.md): in vehicle-leaves-crossing the vehicle is on the
+    track until its leave_s and gone after it, nothing to hit; in vehicle-blinded-crossing it
+    stays, every channel is blind for a while, and the train stops before it. Whether the
+    monitor releases in the first is the core's to test."""
+    res = runs("m2", "vehicle-leaves-crossing")
+    leave = res.player.scenario.obstacles[0].leave_s
+    assert all(row.distance_m is not None for row in res.player.trace if row.t_s < leave)
+    assert all(row.distance_m is None for row in res.player.trace if row.t_s >= leave)
+    assert not res.player.collision and res.summary["margin_m"] is None
+    assert res.summary["outcome"] in ("avoided", "stopped") and res.summary["scenario_s"] == pytest.approx(40.0)
+    blind = runs("m2", "vehicle-blinded-crossing")
+    assert set(blind.summary["faults_injected"]) == {f"blind@ch{ch}" for ch in range(6)}
+    assert blind.summary["outcome"] == "stopped" and blind.summary["margin_m"] > 0
+
+
 # ----------------------------------------------------------------------------- determinism and replay
 
 def _without_paths(summary: dict) -> dict:
@@ -239,7 +255,9 @@ def test_replay_command_prints_the_decisions(runs, capsys, tmp_path):
     assert len(lines) == 1
     obj = json.loads(lines[0])
     decisions, stats = rp.replay_file(setup_for("m2"), log)
-    assert obj["decisions"] == [[d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm] for d in decisions]
+    assert obj["decisions"] == [[d.tick, d.demand, d.reasons, d.mode, d.node, d.distance_dm, d.track_dm, d.track_state,
+                                 d.track_cycles] for d in decisions]
+    assert obj["track"] == stats["track"]
     assert obj["cycles"] == len(decisions)
     assert obj["agreement_with_recorded"] == stats["agreement_with_recorded"]
     assert Path(obj["plot"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -256,7 +274,7 @@ def test_replay_text_output(runs, capsys, tmp_path):
 
 # ----------------------------------------------------------------------------- CLI
 
-RUN_KEYS = {"outcome", "margin_m", "demands", "faults_detected", "frames_received", "frames_rejected",
+RUN_KEYS = {"outcome", "margin_m", "demands", "faults_detected", "track", "frames_received", "frames_rejected",
             "deadline_misses", "log", "plot"}
 
 
@@ -405,6 +423,34 @@ def test_a_late_player_moves_the_train_but_sends_no_burst():
     assert late.position == pytest.approx(steady.position) and late.position > 0
 
 
+def test_the_player_s_obstacle_leaves_the_track_and_blind_hides_it():
+    """leave_s (issue 29 item 4): every channel reports the vehicle until it leaves, ABSENT
+    after it (as for no obstacle), and the train runs through where it stood without a
+    collision. A blind fault makes every channel miss it while it is there."""
+    from can_bus.player import Player
+    from can_bus.scenario import FaultSpec, ObstacleSpec, Scenario, SensorSpec, TrainSpec
+
+    def play(obstacle, faults=()):
+        scen = Scenario("t", duration_s=12.0, train=TrainSpec(speed_mps=10.0), obstacles=(obstacle,),
+                        sensors=SensorSpec(noise_sigma_m=0.0), faults=faults)
+        with can.Bus(interface="virtual", channel=f"rg-leave-{next(_unique)}") as bus:
+            player = Player(bus, scen, wait_for_monitor=False)
+            seen = []
+            while not player.finished:
+                player.move(0)                                   # no demand: the train runs at 10 m/s
+                seen.append((round(player.t, 1), {player.true_report(ch, 0).status for ch in range(6)}))
+            return player, seen
+
+    player, seen = play(ObstacleSpec(position_m=60.0, leave_s=3.0, type="dynamic"))
+    assert {st for t, (st,) in seen if t < 3.0} == {PRESENT}
+    assert {st for t, (st,) in seen if t >= 3.0} == {ABSENT} and player.obstacle_distance() is None
+    assert not player.collision and player.position == pytest.approx(120.0)
+    player, seen = play(ObstacleSpec(position_m=200.0), (FaultSpec("blind", start_s=2.0, end_s=4.0),))
+    assert [sorted({st for t, (st,) in seen if a <= t < b}) for a, b in ((0, 2), (2, 4), (4, 12))] == \
+        [[PRESENT], [ABSENT], [PRESENT]]
+    assert player.faults_injected == {("blind", ch) for ch in range(6)}
+
+
 # ----------------------------------------------------------------------------- deadline overruns
 
 class JumpingClock:
@@ -473,16 +519,17 @@ def test_deadline_overruns_lead_to_safe_stop():
         else:
             assert not rec.reasons & R_DEADLINE, k
             assert rec.mode != SAFE_STOP, k
-    # what went on the bus: two valid E2E frames per cycle, in order
+    # what went on the bus: three valid E2E frames per cycle, in order
     rx = Receiver()
-    assert len(frames) == 2 * len(recs)
+    assert len(frames) == 3 * len(recs)
     demands, statuses = [], []
     for msg in frames:
         assert not msg.is_extended_id and len(msg.data) == 8
         name = rx.accept(msg.arbitration_id, msg.data, 0)
-        assert name in ("BrakeDemand", "MonitorStatus"), dict(rx.rejected)
-        (demands if name == "BrakeDemand" else statuses).append(dict(rx.demand if name == "BrakeDemand" else rx.status))
-    assert [f.arbitration_id for f in frames[:2]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID]
+        assert name in ("BrakeDemand", "MonitorStatus", "MonitorTrack"), dict(rx.rejected)
+        if name != "MonitorTrack":
+            (demands if name == "BrakeDemand" else statuses).append(dict(rx.demand if name == "BrakeDemand" else rx.status))
+    assert [f.arbitration_id for f in frames[:3]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID]
     assert len(demands) == len(statuses) == len(recs)
     for k, (dem, st, rec) in enumerate(zip(demands, statuses, recs)):
         assert dem["Level"] == rec.demand and dem["Reason"] == rec.reasons and st["Mode"] == rec.mode, k
@@ -544,12 +591,14 @@ def test_final_emergency_on_shutdown():
     finally:
         mon_bus.shutdown()
         other.shutdown()
-    assert [m.arbitration_id for m in last] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID]
+    assert [m.arbitration_id for m in last] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID]
     # valid E2E frames with the next counters, so a receiver takes them
     assert rx.accept(last[0].arbitration_id, last[0].data, 1) == "BrakeDemand"
     assert rx.demand["Level"] == EMERGENCY and rx.demand["Reason"] & R_SAFE_STOP
     assert rx.accept(last[1].arbitration_id, last[1].data, 1) == "MonitorStatus"
     assert rx.status["Mode"] == SAFE_STOP
+    assert rx.accept(last[2].arbitration_id, last[2].data, 1) == "MonitorTrack"
+    assert rx.track["TrackState"] == TRACK_NONE         # the monitor stops supervising: no track
 
 
 def test_extended_id_frame_is_not_a_standard_report():

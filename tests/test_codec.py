@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from can_bus import codec
 from can_bus.codec import (
-    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver, Sender,
-    encode, report_signals,
+    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
+    Sender, encode, report_signals,
 )
 from monitor.core import cycle as core
 from monitor.core.config import Config
@@ -36,6 +36,7 @@ MESSAGE_NAMES = {
     0x24: "ObstacleReport_M3C1", 0x25: "ObstacleReport_M3C2",
     0x30: "TrainState",
     0x40: "MonitorStatus",
+    0x41: "MonitorTrack",
 }
 KNOWN_IDS = tuple(MESSAGE_NAMES)
 
@@ -75,7 +76,9 @@ def ref_in_range(frame_id: int, data: bytes) -> bool:
     if frame_id == TRAIN_STATE_ID:
         return field(data, 16, 16) <= 12000
     if frame_id == BRAKE_DEMAND_ID:
-        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 8191
+        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 16383
+    if frame_id == MONITOR_TRACK_ID:
+        return field(data, 12, 3) <= 5        # TrackState; Memory, TrackDistance and TrackAge span their bits
     return True    # MonitorStatus: every signal spans its full bit width
 
 
@@ -145,8 +148,10 @@ def test_dbc_ids_are_ordered_by_safety_priority_and_e2e_layout():
     # the brake demand wins arbitration against everything else
     assert ids["BrakeDemand"] == min(ids.values())
     assert all(v > ids["BrakeDemand"] for k, v in ids.items() if k != "BrakeDemand")
-    assert (codec.BRAKE_DEMAND_ID, codec.TRAIN_STATE_ID, codec.MONITOR_STATUS_ID) == (
-        ids["BrakeDemand"], ids["TrainState"], ids["MonitorStatus"])
+    assert (codec.BRAKE_DEMAND_ID, codec.TRAIN_STATE_ID, codec.MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID) == (
+        ids["BrakeDemand"], ids["TrainState"], ids["MonitorStatus"], ids["MonitorTrack"])
+    # the monitor's outputs in the order it sends them; the track right after the status
+    assert codec.OUTPUT_IDS == (ids["BrakeDemand"], ids["MonitorStatus"], ids["MonitorTrack"])
     assert codec.OBSTACLE_IDS == tuple(ids[f"ObstacleReport_M{m}C{c}"] for m in (1, 2, 3) for c in (1, 2))
     # data IDs (low byte of the frame ID) are distinct, so a frame cannot pass as another
     assert len({codec.data_id(i) for i in ids.values()}) == len(ids)
@@ -209,9 +214,11 @@ def test_round_trip_latches_exactly_the_report(items):
 
 @settings(max_examples=100, deadline=None)
 @given(speed=st.integers(0, 12000), track=st.integers(0, 1), brake=st.integers(0, 1),
-       level=st.integers(0, 2), reason=st.integers(0, 8191), cyc=st.integers(0, 2**32 - 1),
-       mode=st.integers(0, 3), misses=st.integers(0, 15), dist=st.integers(0, 65535))
-def test_round_trip_other_messages(speed, track, brake, level, reason, cyc, mode, misses, dist):
+       level=st.integers(0, 2), reason=st.integers(0, 16383), cyc=st.integers(0, 2**32 - 1),
+       mode=st.integers(0, 3), misses=st.integers(0, 15), dist=st.integers(0, 65535),
+       t_state=st.integers(0, 5), memory=st.integers(0, 1), t_dist=st.integers(0, 65535), age=st.integers(0, 65535))
+def test_round_trip_other_messages(speed, track, brake, level, reason, cyc, mode, misses, dist, t_state, memory,
+                                   t_dist, age):
     sender, rx = Sender(), Receiver()
     data = sender.frame(TRAIN_STATE_ID, {"Speed": speed, "TrackCondition": track, "BrakeStatus": brake})
     assert rx.accept(TRAIN_STATE_ID, data, 7) == "TrainState"
@@ -222,7 +229,22 @@ def test_round_trip_other_messages(speed, track, brake, level, reason, cyc, mode
     data = sender.frame(MONITOR_STATUS_ID, {"Mode": mode, "DeadlineMisses": misses, "VotedDistance": dist})
     assert rx.accept(MONITOR_STATUS_ID, data, 9) == "MonitorStatus"
     assert (rx.status["Mode"], rx.status["DeadlineMisses"], rx.status["VotedDistance"]) == (mode, misses, dist)
+    data = sender.frame(MONITOR_TRACK_ID, {"TrackState": t_state, "Memory": memory, "TrackDistance": t_dist,
+                                           "TrackAge": age})
+    assert data[0] == ref_crc(data, MONITOR_TRACK_ID)
+    assert (field(data, 12, 3), field(data, 15, 1), field(data, 16, 16), field(data, 32, 16), field(data, 48, 16)) == (
+        t_state, memory, t_dist, age, 0)                       # bits 48-63 reserved: zero
+    assert rx.accept(MONITOR_TRACK_ID, data, 10) == "MonitorTrack"
+    assert (rx.track["TrackState"], rx.track["Memory"], rx.track["TrackDistance"], rx.track["TrackAge"],
+            rx.track["tick"]) == (t_state, memory, t_dist, age, 10)
     assert rx.rejected_total == 0
+
+
+def test_track_state_beyond_the_table_is_out_of_range():
+    rx = Receiver()
+    assert rx.accept(MONITOR_TRACK_ID, encode(MONITOR_TRACK_ID, {"TrackState": 5}, 0), 1) == "MonitorTrack"
+    assert rx.accept(MONITOR_TRACK_ID, encode(MONITOR_TRACK_ID, {"TrackState": 6}, 1), 2) is None
+    assert rx.rejected["out_of_range"] == 1 and rx.track["TrackState"] == 5
 
 
 def test_sender_counter_wraps_modulo_16_and_receiver_follows():
@@ -326,7 +348,7 @@ def test_wrong_length_is_rejected(length):
     assert_dropped(rx, "wrong_length")
 
 
-@pytest.mark.parametrize("frame_id", [0x0, 0x11, 0x1F, 0x26, 0x31, 0x41, 0x7FF, 0x120])
+@pytest.mark.parametrize("frame_id", [0x0, 0x11, 0x1F, 0x26, 0x31, 0x42, 0x7FF, 0x120])
 def test_unknown_id_is_rejected(frame_id):
     sender, rx = primed()
     data = encode(0x20, report_signals(GOOD, 0), 1)
@@ -359,7 +381,7 @@ def test_out_of_range_train_and_demand_are_rejected():
     assert rx.accept(TRAIN_STATE_ID, encode(TRAIN_STATE_ID, {"Speed": 12001}, 0), 1) is None
     assert rx.train is None and rx.train_tick is None
     assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Level": 3}, 0), 1) is None
-    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 8192}, 1), 1) is None
+    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 16384}, 1), 1) is None
     assert rx.demand is None
     assert rx.rejected["out_of_range"] == 3 and rx.accepted == 0
 
@@ -409,8 +431,11 @@ def _signal_strategy(frame_id: int):
         return st.fixed_dictionaries({"Speed": val(0, 12000, 0, 65535), "TrackCondition": st.integers(0, 1),
                                       "BrakeStatus": st.integers(0, 1)})
     if frame_id == BRAKE_DEMAND_ID:
-        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 8191, 0, 65535), "Warning": st.integers(0, 1),
+        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 16383, 0, 65535), "Warning": st.integers(0, 1),
                                       "Cycle": st.integers(0, 2**32 - 1)})
+    if frame_id == MONITOR_TRACK_ID:
+        return st.fixed_dictionaries({"TrackState": val(0, 5, 0, 7), "Memory": st.integers(0, 1),
+                                      "TrackDistance": st.integers(0, 65535), "TrackAge": st.integers(0, 65535)})
     return st.fixed_dictionaries({"Mode": st.integers(0, 3), "Node": st.integers(0, 1023),
                                   "ErrorFlags": st.integers(0, 63), "VotedDistance": st.integers(0, 65535),
                                   "TableHash": st.integers(0, 4095), "DeadlineMisses": st.integers(0, 15)})

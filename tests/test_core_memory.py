@@ -18,6 +18,13 @@ from tests.test_core_cycle import M1, M2, clear, disagreeing, normal_driver, pre
 V = 3000                  # 30 m/s
 
 
+def firm(d, distance: int, speed: int, closing=None, cycles: int = 3):
+    """Vote an obstacle in `cycles` cycles in a row; the last output."""
+    for _ in range(cycles):
+        out = d.present(distance, speed) if closing is None else d.cycle(present(d.tick, distance, closing=closing), speed)
+    return out
+
+
 def near_1500(track_dm: int) -> bool:
     """150 m, less the worst-case creep of a train that reads 0 cm/s but may accelerate
     (a T^2 / 2 per cycle: 3.5 mm at the default declaration) over a few dozen cycles."""
@@ -35,7 +42,7 @@ def test_a_blind_spell_after_an_emergency_keeps_the_emergency_on_the_remembered_
     cfg = Config()
     d = normal_driver(cfg, M2)
     ebi = curves(cfg, V, 0, 0, V, 0).ebi_dm
-    out = d.present(ebi - 100, V)
+    out = firm(d, ebi - 100, V)
     assert out.demand == EMERGENCY and out.track_state == TRACK_SEEN and out.track_dm == ebi - 100
     near = (ebi - 100) * UNITS_PER_DM
     for k in range(30):                                   # 3 s blind, far longer than the release confirmation
@@ -52,7 +59,7 @@ def test_the_track_is_forgotten_at_exactly_the_confirmation_time_and_a_stale_cyc
     n = forget_cycles(cfg)
     assert n == 13
     d = normal_driver(cfg, M1)
-    d.present(1500, 0)                                    # 150 m ahead of a train at standstill
+    firm(d, 1500, 0)                                      # 150 m ahead of a train at standstill
     for k in range(5):
         assert d.clear(0).track_state == TRACK_CONFIRMING
     out = d.cycle(with_channel(clear(d.tick), 3, None), 0)    # one channel silent: no evidence
@@ -69,7 +76,7 @@ def test_the_track_is_forgotten_at_exactly_the_confirmation_time_and_a_stale_cyc
 def test_no_evidence_while_the_picture_is_disputed_or_degraded(picture):
     cfg = Config()
     d = normal_driver(cfg, M1)
-    d.present(1500, 0)
+    firm(d, 1500, 0)
     for _ in range(3 * forget_cycles(cfg)):
         reports = with_channel(clear(d.tick), 2, Report(DEGRADED, 0, 0, STATIC, d.tick)) if picture == "degraded" \
             else disagreeing(d.tick, 30000)
@@ -80,7 +87,7 @@ def test_no_evidence_while_the_picture_is_disputed_or_degraded(picture):
 def test_absence_beyond_the_declared_sensor_range_is_no_evidence():
     cfg = Config(sensor_range_dm=1000)
     d = normal_driver(cfg, M1)
-    d.present(1500, 0)
+    firm(d, 1500, 0)
     for _ in range(2 * forget_cycles(cfg)):
         out = d.clear(0)
         assert out.track_state == TRACK_HELD and near_1500(out.track_dm)
@@ -113,7 +120,7 @@ def test_a_passed_position_is_forgotten_when_the_train_s_least_travel_takes_it_b
 def test_an_oncoming_obstacle_keeps_closing_while_the_train_stands():
     cfg = Config()
     d = normal_driver(cfg, M2)
-    d.cycle(present(d.tick, 3000, closing=2000), 0)       # closing at 20 m/s, the train stands
+    firm(d, 3000, 0, closing=2000)                        # closing at 20 m/s, the train stands
     step = near_travel(0, cfg.speed_error_permille, accel(cfg), 2000, cfg.period_ms)
     out = d.clear(0)
     assert out.track_dm == (3000 * UNITS_PER_DM - step) // UNITS_PER_DM
@@ -123,7 +130,7 @@ def test_an_oncoming_obstacle_keeps_closing_while_the_train_stands():
 
 def test_a_receding_obstacle_is_remembered_as_stopped():
     d = normal_driver(Config(), M2)
-    d.cycle(present(d.tick, 3000, closing=-500), 0)       # receding at 5 m/s: taken to stop at once
+    firm(d, 3000, 0, closing=-500)                        # receding at 5 m/s: taken to stop at once
     for _ in range(5):
         assert 2990 <= d.clear(0).track_dm <= 3000
 
@@ -132,7 +139,7 @@ def test_a_disputed_sighting_never_creates_a_track_and_a_farther_one_never_hides
     d = normal_driver(Config(), M1)
     out = d.cycle(disagreeing(d.tick, 1200), 0)
     assert out.track_state == TRACK_NONE and out.track_dm == NO_DISTANCE
-    d.present(1500, 0)
+    firm(d, 1500, 0)
     out = d.cycle(disagreeing(d.tick, 2500), 0)           # one channel sees something farther
     assert near_1500(out.track_dm) and out.reasons & R_MEMORY
     out = d.cycle(disagreeing(d.tick, 1200), 0)           # a nearer disputed one brings it nearer
@@ -149,9 +156,9 @@ def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():
     d = normal_driver(cfg, M1)
     d.cycle(with_channel(clear(d.tick), 0, Report(PRESENT, c.ebi_dm - 5, V, STATIC, d.tick)), V)   # a dispute inside EBI
     assert d.state.held == EMERGENCY
-    out = d.present(c.sbi_dm + 400, 1000)                # confirmed, far beyond SBI at 10 m/s: calm 1
+    out = firm(d, c.sbi_dm + 400, 1000)                  # confirmed, far beyond SBI at 10 m/s: calm 3
     assert out.track_state == TRACK_SEEN and out.demand == EMERGENCY
-    for k in range(cfg.release_confirm_cycles - 2):
+    for k in range(cfg.release_confirm_cycles - 4):
         out = d.clear(1000)
         assert out.demand == EMERGENCY and out.reasons & R_LATCH, k
     out = d.clear(1000)
@@ -159,8 +166,9 @@ def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():
 
 
 def test_the_table_s_service_is_held_while_its_obstacle_is_in_the_table_s_zones():
-    """Issue 29 item 6: what the table raised is lowered only when its obstacle (voted or
-    remembered) has left the table's zones, so a wavering belief cannot toggle the brake."""
+    """Issue 29 item 6: what the table raised is lowered only when the voted picture has left
+    the table's zones, so a wavering belief cannot toggle the brake while the obstacle is seen;
+    a picture that flickers is bridged by the hold's confirmation cycles."""
     from monitor.core.table import decode, encode
 
     t = decode(M1)
@@ -177,4 +185,12 @@ def test_the_table_s_service_is_held_while_its_obstacle_is_in_the_table_s_zones(
         out = d.present(dist, 1000) if k % 2 == 0 else d.clear(1000)
         demands.append(out.demand)
     assert demands[0] == SERVICE and set(demands) == {SERVICE}
+    # a table whose own node wavers while the obstacle stays seen: held by the table's hold
+    wavering = encode({**t.header, "start": 0}, [MAINTAIN, SERVICE], [[0] + [1] * (Z - 1), [0] * Z])
+    d = normal_driver(cfg, wavering)
+    demands = [d.present(dist, 1000).demand for _ in range(40)]
+    assert demands[0] == SERVICE and set(demands) == {SERVICE}
+    assert d.state.table_held == SERVICE
+    out = d.clear(1000)                                   # the picture leaves the zones: the table lets go
+    assert d.state.table_held == MAINTAIN and out.demand == SERVICE     # the hold's confirmation follows
     assert d.clear(0).demand == MAINTAIN                  # standstill lets it go

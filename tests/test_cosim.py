@@ -113,6 +113,23 @@ def test_an_oncoming_obstacle_reaches_our_standing_train(monitor_fmus, train_fmu
     assert speed[hit - 1] == 0.0 and max(speed) == pytest.approx(scen.train["initial_speed"])
 
 
+def test_the_vehicle_leaving_the_crossing_and_its_blind_contrast(monitor_fmus, train_fmu):
+    """vehicle-leaves-crossing: the train FMU's obstacle is on the track until
+    obstacle.leave_time, gone after it (true_distance 1e9), nothing to hit, no margin to tell;
+    vehicle-blinded-crossing (the FMU's blind fault): the vehicle stays and the train stops
+    before it. Whether the monitor releases in the first is the core's to test."""
+    scen, res = run("vehicle-leaves-crossing", monitor_fmus, train_fmu)
+    leave = scen.train["obstacle.leave_time"]
+    assert leave == scen.world.obstacles[0].leave_s
+    t, dist = column(res, "time_s"), column(res, "true_distance")
+    assert 0 < min(d for d, ti in zip(dist, t) if ti < leave - 1e-9)
+    assert {d for d, ti in zip(dist, t) if ti >= leave - 1e-9} == {1e9}
+    assert not res.collision and res.margin_m is None and res.outcome in ("running", "stopped")
+    scen, res = run("vehicle-blinded-crossing", monitor_fmus, train_fmu)
+    assert scen.train["fault.kind"] == scenario.FAULT_KINDS.index("blind")
+    assert res.outcome == "stopped" and res.margin_m > 0
+
+
 def test_the_demand_reaches_the_train_one_cycle_late(monitor_fmus, train_fmu):
     """By default the train holds, during each monitor cycle, the demand the monitor
     computed in the cycle before (as on CAN); with demand_delay_cycles 0, the same cycle's."""
@@ -267,20 +284,21 @@ def test_commands_fail_in_one_line(tmp_path):
     assert res.returncode == 2 and "SHA-256" in res.stderr
 
 
-def test_the_stress_failure_collides_in_cosimulation_and_held_emergencies_stop(monitor_fmus, train_fmu):
-    """The likeliest failure `railguard stress` found, replayed by the real FMUs: the train
-    FMU's `blind` fault (every channel misses) for 1.2 s during emergency braking releases
-    the revocable emergency and the train hits the obstacle; without the blindness, or with
-    every emergency held to standstill, it stops."""
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_the_stress_failure_now_stops_in_cosimulation(monitor_fmus, train_fmu, table):
+    """Issue 29 acceptance: the likeliest failure `railguard stress` found before the obstacle
+    memory, replayed by the real FMUs (the train FMU's `blind` fault, every channel misses,
+    for 1.2 s during emergency braking), no longer releases the emergency: the remembered
+    obstacle stays inside the curve, the demand stays emergency through the blindness and the
+    train stops. A forgetting time of one cycle (0.1 s) brings the old failure
+    back: the memory, not luck, is what holds the brake."""
     scen = scenario.load("stress-blackout-release")
     assert scen.train["fault.kind"] == scenario.FAULT_KINDS.index("blind")
-    res = cosim.run_scenario(scen, monitor_fmus[("m2", 2)], train_fmu)
-    assert res.outcome == "collision"
+    res = cosim.run_scenario(dataclasses.replace(scen, table=table), monitor_fmus[(table, 2)], train_fmu)
+    assert res.outcome == "stopped"
     demand, t = column(res, "brake_demand"), column(res, "time_s")
     start, end = scen.train["fault.start"], scen.train["fault.end"]
     assert max(demand[i] for i, ti in enumerate(t) if ti < start) == 2                     # braking before
-    assert min(demand[i] for i, ti in enumerate(t) if start + 0.7 < ti < end) == 0         # released while blind
-    clear = dataclasses.replace(scen, train={**scen.train, "fault.kind": 0})
-    assert cosim.run_scenario(clear, monitor_fmus[("m2", 2)], train_fmu).outcome == "stopped"
-    held = dataclasses.replace(scen, monitor={**scen.monitor, "emergency_release": 0})
-    assert cosim.run_scenario(held, monitor_fmus[("m2", 2)], train_fmu).outcome == "stopped"
+    assert min(demand[i] for i, ti in enumerate(t) if start <= ti <= end) == 2             # held while blind
+    short = dataclasses.replace(scen, table=table, monitor={**scen.monitor, "forget_ms": 100})
+    assert cosim.run_scenario(short, monitor_fmus[(table, 2)], train_fmu).outcome == "collision"

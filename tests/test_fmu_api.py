@@ -380,6 +380,10 @@ BAD_PARAMETERS = [
     ("safe_reaction", {"safe_reaction": 0}),
     ("max_overruns", {"max_overruns": 0}),
     ("distance_tolerance_dm", {"distance_tolerance_dm": 60001}),
+    ("forget_ms", {"forget_ms": 0}),
+    ("forget_ms", {"forget_ms": 600001}),
+    ("sensor_range_dm", {"sensor_range_dm": 0}),
+    ("sensor_range_dm", {"sensor_range_dm": 60001}),
 ]
 BAD_IDS = [f"{name}-{'-'.join(f'{v}' for v in params.values())}" for name, params in BAD_PARAMETERS]
 
@@ -433,6 +437,7 @@ def test_every_config_field_is_a_parameter_with_the_core_default():
         assert v.start == (3 if name == "topology" else getattr(Config(), name)), name
     reasons = next(v for v in MONITOR if v.name == "reasons").description
     assert "1024 sbi" in reasons and "2048 warning" in reasons and "4096 dispute" in reasons
+    assert "8192 memory" in reasons
     assert next(v for v in MONITOR if v.name == "warning").type == "Boolean"
 
 

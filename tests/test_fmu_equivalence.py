@@ -8,10 +8,18 @@ infinities, out-of-range values, unknown codes, stale channels, contradictions),
 generator aims at the exact edges of the supervision: the voted distance on EBI, SBI, the
 warning curve and the table's zones (and one dm either side), speeds at 0, 1 cm/s and the
 speed-band edges, reports aged 0 cycles and exactly the timeout, disputes, and a release
-after exactly `release_confirm_cycles`. Each sequence runs through a fresh FMU and through
+after exactly `release_confirm_cycles`; and the obstacle memory (issue 29): a track created
+by a confirmed obstacle and predicted through a blindness (the train accelerating, the
+obstacle closing), the remembered obstacle exactly on (and 1 dm beside) its own EBI and SBI,
+forgotten after exactly `forget_ms` of evidence (one cycle short, and evidence broken by a
+stale or disputing cycle), not forgotten beyond the sensor range (exactly at it and 1 dm
+beyond), passed, a disputed farther sighting that must not replace a nearer track, the
+table's hold (its obstacle from a near zone back to a farther one that is not free), a
+flapping channel that reaches a perceptor error, and a service hold released after exactly
+`release_confirm_cycles`. Each sequence runs through a fresh FMU and through
 fmu.reference.MonitorReference; every output is compared after every step, and the
 reference measures which edges the sequences reached (asserted at the end). 10,000
-sequences over the two shipped tables (issues 5 and 11).
+sequences over the two shipped tables (issues 5, 11 and 29).
 """
 from __future__ import annotations
 
@@ -26,9 +34,13 @@ from hypothesis import strategies as st
 from fmu.reference import (CHANNELS, ChannelInput, MonitorReference, StepInput, config_from_parameters,
                            read_closing_cms, read_distance_dm, read_speed_cms)
 from monitor.core.braking import curves
-from monitor.core.config import check, gradient_accel_mms2
+from monitor.core.config import check, forget_cycles, gradient_accel_mms2
 from monitor.core.freshness import channel_status
-from monitor.core.types import MAX_DISTANCE_DM, NO_DISTANCE, PRESENT, R_DISPUTE, R_LATCH
+from monitor.core.memory import UNITS_PER_DM, far_travel, near_travel
+from monitor.core.types import (ABSENT, DEGRADED, MAX_DISTANCE_DM, NO_DISTANCE, NO_TRACK, PRESENT, R_DISPUTE,
+                                R_ENVELOPE, R_LATCH, R_MEMORY, R_PERCEPTOR, R_STALE, TRACK_CONFIRMING, TRACK_FORGOTTEN,
+                                TRACK_HELD, TRACK_PASSED, TRACK_SEEN)
+from monitor.core.voter import disagreement
 from monitor.tables import read
 
 SEQUENCES_PER_TABLE = 5000
@@ -110,7 +122,10 @@ def draw_config(b: Bytes) -> dict:
          "fast_closing_cms": 1 + b.u16() % 4000, "distance_tolerance_dm": b.pick([0, 1, 100, 500, b.u16() % 3001]),
          "max_overruns": 1 + b.u8() % 5, "emergency_release": b.u8() & 1,
          "release_confirm_cycles": b.pick([1, 2, 3, 5, 10, 1 + b.u8() % 40]),
-         "warning_ms": b.pick([0, 2000, b.u16() % 60001])}
+         "warning_ms": b.pick([0, 2000, b.u16() % 60001]),
+         # the obstacle memory: forget_ms not a whole number of cycles now and then (rounded up)
+         "forget_ms": b.pick([100, 101, 199, 300, 500, 1000, 5000, 1 + b.u16() % 3000]),
+         "sensor_range_dm": b.pick([4000, 4000, 500, 60000, 1 + b.u16() % 60000])}
     p.update(draw_declaration(b))
     check(config_from_parameters(p))      # the generator only makes valid configurations
     return p
@@ -248,6 +263,139 @@ def release_steps(b: Bytes, cfg) -> list:
     return steps + [(StepInput((gone,) * CHANNELS, v_gone), 1)] * n
 
 
+# ---- the obstacle memory (issue 29) -----------------------------------------------------------
+
+def _module_sees(chans: list, k: int, ch: ChannelInput) -> list:
+    """`chans` with module k // 2's two channels reporting `ch`."""
+    m = k // 2
+    return [ch if i // 2 == m else c for i, c in enumerate(chans)]
+
+
+def memory_steps(b: Bytes, cfg) -> list:
+    """A confirmed obstacle (every channel) creates the track, aimed so that the first
+    blind cycle finds the remembered distance exactly on (or 1 dm beside) the track's own
+    EBI, SBI or warning curve, exactly at the sensor range (or 1 dm beyond), close enough
+    to be passed, or anywhere; now and then an emergency (the obstacle inside EBI) comes
+    first, so that the remembered obstacle is supervised while an emergency is held. Then
+    blind cycles (every channel fresh ABSENT: evidence) for forget_cycles - 1, + 0, + 1 or
+    enough to pass it, at the same speed or standing, with now and then one cycle that
+    breaks the evidence (a DEGRADED channel, a report gone stale, one module seeing the
+    obstacle nearer or farther: a dispute)."""
+    speed = b.pick([0, 1, 1 + b.u16() % 12000, 1 + b.u16() % 4000, 1 + b.u16() % 4000])
+    err = cfg.speed_error_permille
+    own = speed * (1000 - err) // 1000
+    closing = b.pick([speed, speed, speed + b.u16() % 1500, speed - b.u16() % 1000, 0, -15000, 15000])
+    closing = max(-15000, min(15000, closing))
+    obstacle_own = max(closing - own, 0)          # what the track remembers as the obstacle's own speed
+    accel = cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille)
+    travel = near_travel(speed, err, accel, obstacle_own, cfg.period_ms)
+    tc = curves(cfg, speed, 0, 0, obstacle_own + own, 0)
+    fc = forget_cycles(cfg)
+    aim = b.u8() % 7
+    if aim < 3:                                   # the remembered distance on a curve in the first blind cycle
+        target = (tc.ebi_dm, tc.sbi_dm, tc.warning_dm)[aim] + b.pick([0, 0, 1, -1])
+        d = -(-(max(0, target) * UNITS_PER_DM + travel) // UNITS_PER_DM)
+    elif aim == 3:                                # exactly at the sensor range or 1 dm beyond, standing
+        speed, own, d = 0, 0, cfg.sensor_range_dm + b.pick([0, 0, 1, -1])
+    elif aim == 4:                                # close, moving: the train's least travel passes it
+        speed = 500 + b.u16() % 4000
+        own = speed * (1000 - err) // 1000
+        d = b.u16() % 100
+    else:
+        d = b.u16() % (MAX_DISTANCE_DM + 1)
+    d = max(0, min(MAX_DISTANCE_DM, d))
+    v = speed_mps(speed)
+    seen = ChannelInput(1, metres(d), closing_mps(closing), b.u8() % 3, True)
+    steps = []
+    if b.u8() % 3 == 0:                           # an emergency first (the obstacle inside EBI)
+        vc = curves(cfg, speed, 0, 0, closing, 0)
+        steps.append((StepInput((seen._replace(distance=metres(max(0, min(MAX_DISTANCE_DM, vc.ebi_dm - b.u8() % 20)))),)
+                                * CHANNELS, v), 1))
+    steps.append((StepInput((seen,) * CHANNELS, v), 1))
+    least = far_travel(speed, err, accel, cfg.period_ms)
+    to_pass = d * UNITS_PER_DM // least + 1 if least else 1
+    n = b.pick([to_pass, to_pass + 1]) if aim == 4 else b.pick([fc - 1, fc, fc, fc + 1, 1 + b.u8() % 8, to_pass])
+    n = max(1, min(n, 70))
+    v_blind = v if b.u8() % 4 or aim == 4 else 0.0
+    blind = StepInput((CLEAR,) * CHANNELS, v_blind)
+    cycles = [blind] * n
+    odd = b.u8() % 8
+    if odd < 4 and n > 1:
+        at = b.u8() % n
+        k = b.u8() % (2 * cfg.modules)
+        chans = [CLEAR] * CHANNELS
+        if odd == 0:
+            chans[k] = CLEAR._replace(status=2)                   # a DEGRADED channel: stale, an error
+        elif odd == 1:
+            chans[k] = SILENT                                     # silent: ages into DEGRADED after the timeout
+            span = min(cfg.timeout_cycles + 1, n - at)
+            cycles[at:at + span] = [StepInput(tuple(chans), v_blind)] * span
+        else:                                                     # one module sees it nearer or farther: a dispute
+            farther = d + 1 + b.u16() % 500 if odd == 2 else max(0, d - 1 - b.u16() % 200)
+            chans = _module_sees(chans, k, seen._replace(distance=metres(min(MAX_DISTANCE_DM, farther))))
+        if odd != 1:
+            cycles[at] = StepInput(tuple(chans), v_blind)
+    return steps + [(c, 1) for c in cycles]
+
+
+def flapping_steps(b: Bytes, cfg) -> list:
+    """One channel drops the obstacle now and then while its partner keeps it, with calm
+    spells shorter than `persistence_cycles` (the disagreement adds up to a perceptor
+    error) or exactly that long (it clears)."""
+    p = cfg.persistence_cycles
+    speed = b.u16() % 4001
+    d = b.u16() % (MAX_DISTANCE_DM + 1)
+    ch = ChannelInput(1, metres(d), closing_mps(speed), 0, True)
+    k = b.u8() % (2 * cfg.modules)
+    split = [ch] * CHANNELS
+    split[k] = CLEAR
+    steps = []
+    for _ in range(p + b.u8() % 3):
+        steps.append((StepInput(tuple(split), speed_mps(speed)), 1))
+        calm = b.pick([1, 1, max(1, p - 1), p])
+        steps += [(StepInput((ch,) * CHANNELS, speed_mps(speed)), 1)] * calm
+    return steps
+
+
+def service_release_steps(b: Bytes, cfg) -> list:
+    """A lost channel (NaN distance, one cycle, after a clear one that ends INIT) makes the
+    safe reaction (service or emergency) while the track is clear; then its cause gone for release_confirm_cycles -
+    1, + 0 or + 1 cycles at a constant speed."""
+    v = speed_mps(1 + b.u16() % 4000)
+    lost = [CLEAR] * CHANNELS
+    lost[b.u8() % (2 * cfg.modules)] = ChannelInput(0, math.nan, 0.0, 0, True)
+    n = max(1, cfg.release_confirm_cycles + b.pick([-1, 0, 0, 1]))
+    clear = StepInput((CLEAR,) * CHANNELS, v)
+    return [(clear, 1), (StepInput(tuple(lost), v), 1)] + [(clear, 1)] * n
+
+
+def table_hold_steps(b: Bytes, cfg) -> list:
+    """Every channel sees the obstacle in the table's critical or emergency zone, then in a
+    lower zone that is not free (warning, or emergency after critical) for a few cycles at a
+    constant speed, up to three times: where the table lowers its demand while its obstacle is still in its
+    zones, the hold keeps what the table raised."""
+    speed = 1 + b.u16() % 6000
+    aims = targets(cfg, speed, 0, 0, speed, 0)
+    a1, a2, zw = aims["alpha1"], aims["alpha2"], aims["zone warning"]
+    near = max(0, a2 - b.u8() % 30) if b.u8() & 1 else min(a1, a2 + 1 + b.u8() % 30)
+    later = min(zw, a1 + 1 + b.u16() % max(1, cfg.warning_margin_dm)) if b.u8() % 3 else min(a1, a2 + 1)
+    v = speed_mps(speed)
+
+    def at(d: int) -> StepInput:
+        return StepInput((ChannelInput(1, metres(max(0, min(MAX_DISTANCE_DM, d))), closing_mps(speed), 0, True),)
+                         * CHANNELS, v)
+    steps = []
+    for _ in range(1 + b.u8() % 3):
+        steps += [(at(near), 1)] * (1 + b.u8() % 3) + [(at(later), 1)] * (1 + b.u8() % 6)
+    return steps
+
+
+# the blocks a sequence is made of, each as often as its weight says (one byte picks one)
+BLOCK_WEIGHTS = ((random_step, 4), (edge_steps, 3), (release_steps, 1), (memory_steps, 3), (flapping_steps, 1),
+                 (service_release_steps, 2), (table_hold_steps, 1))
+BLOCKS = tuple(block for block, weight in BLOCK_WEIGHTS for _ in range(weight))
+
+
 def decode_sequence(data: bytes) -> tuple[dict, list]:
     """(FMU parameters, [(StepInput, cycles)]) from a byte string."""
     b = Bytes(data)
@@ -257,13 +405,8 @@ def decode_sequence(data: bytes) -> tuple[dict, list]:
     n = 1 + b.u8() % 30
     steps = []
     while len(steps) < n:
-        kind = b.u8() % 8
-        if kind < 4:
-            steps += random_step(b, world)
-        elif kind < 7:
-            steps += edge_steps(b, cfg)
-        else:
-            steps += release_steps(b, cfg)
+        block = BLOCKS[b.u8() % len(BLOCKS)]
+        steps += block(b, world) if block is random_step else block(b, cfg)
     return params, steps
 
 
@@ -277,8 +420,43 @@ def coverage_probe(seen: Counter, setup):
     """on_cycle callback of MonitorReference: counts the edges a cycle sits on, recomputed
     from the cycle's own inputs (independently of what the generator aimed at)."""
     cfg = setup.config
+    run = [0] * cfg.modules          # consecutive disagreement cycles per module, this sequence
 
     def probe(tick, inputs, before, after, out):
+        statuses = [channel_status(r, tick, setup.timeout_ticks) for r in inputs.reports[:cfg.channels]]
+        for m in range(cfg.modules):
+            split = disagreement(statuses[2 * m], statuses[2 * m + 1])
+            run[m] = run[m] + 1 if split else 0
+            seen["perceptor error by a flapping channel"] += (split and after.disagree[m] == cfg.persistence_cycles
+                                                              and run[m] < cfg.persistence_cycles)
+        seen["disagreement cleared by a calm spell"] += any(
+            before.disagree[m] > 0 and after.disagree[m] == 0 and after.agree[m] == cfg.persistence_cycles
+            for m in range(cfg.modules))
+        # the obstacle memory
+        seen["track created"] += before.track_near == NO_TRACK and out.track_state == TRACK_SEEN
+        seen["track forgotten after exactly forget_cycles"] += (out.track_state == TRACK_FORGOTTEN
+                                                               and before.track_absent == setup.forget_cycles - 1)
+        seen["track one cycle short of forgotten"] += (out.track_state == TRACK_CONFIRMING
+                                                       and after.track_absent == setup.forget_cycles - 1)
+        seen["evidence broken by a stale cycle"] += (before.track_absent > 0 and out.track_state == TRACK_HELD
+                                                     and out.reasons & R_STALE != 0)
+        seen["evidence broken by a dispute"] += before.track_absent > 0 and out.track_state in (TRACK_SEEN, TRACK_HELD) \
+            and out.system_error and after.track_absent == 0
+        evidence = (out.distance_dm == NO_DISTANCE and not out.system_error and not out.reasons & R_STALE
+                    and all(s == ABSENT for s in statuses))
+        seen["track beyond the sensor range kept"] += out.track_state == TRACK_HELD and evidence
+        range_units = cfg.sensor_range_dm * UNITS_PER_DM
+        seen["track exactly at the sensor range"] += out.track_state in (TRACK_CONFIRMING, TRACK_FORGOTTEN) and (
+            after.track_far == range_units or before.track_far == range_units)
+        seen["track 1 dm beyond the sensor range"] += (out.track_state == TRACK_HELD and evidence
+                                                       and after.track_far == range_units + UNITS_PER_DM)
+        seen["track passed"] += out.track_state == TRACK_PASSED
+        seen["disputed farther sighting kept the track"] += (out.distance_dm != NO_DISTANCE
+                                                             and out.reasons & R_MEMORY != 0)
+        seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
+        seen["service held then released after exactly release_confirm_cycles"] += (
+            before.held == 1 and after.held == 0 and before.calm == cfg.release_confirm_cycles - 1
+            and type(inputs.train.speed_cms) is int and inputs.train.speed_cms > 0)
         train = inputs.train
         valid = type(train.speed_cms) is int and 0 <= train.speed_cms <= 12000 and train.track in (0, 1) \
             and train.brake in (0, 1)
@@ -306,6 +484,18 @@ def coverage_probe(seen: Counter, setup):
         seen["held one cycle short of release"] += after.latched and after.calm == cfg.release_confirm_cycles - 1 > 0
         seen["held to standstill (release 0)"] += (cfg.emergency_release == 0 and before.latched and after.latched
                                                    and out.reasons & R_LATCH != 0)
+        if out.reasons & R_MEMORY:                 # the remembered obstacle on its own curves
+            own = speed * (1000 - cfg.speed_error_permille) // 1000
+            tc = curves(cfg, speed, train.track, train.brake, after.track_closing + own, after.track_age_ms)
+            for name, x in (("EBI", tc.ebi_dm), ("SBI", tc.sbi_dm), ("warning", tc.warning_dm)):
+                seen[f"remembered == {name}"] += out.track_dm == x
+                seen[f"remembered == {name} + 1"] += out.track_dm == x + 1
+            blind = out.distance_dm == NO_DISTANCE
+            seen["blind, remembered inside EBI: emergency"] += blind and out.track_dm <= tc.ebi_dm and speed > 0
+            seen["blind, held, remembered between EBI and SBI: emergency"] += (
+                blind and before.held == 2 and tc.ebi_dm < out.track_dm <= tc.sbi_dm and speed > 0)
+            seen["remembered with acceleration and oncoming closing"] += (after.track_closing > 0 and speed > 0
+                                                                          and setup.track_accel > 0)
     return probe
 
 
@@ -336,7 +526,16 @@ MIN_HITS = 200
 EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance == SBI + 1", "distance == warning",
          "distance == warning + 1", "speed 0", "speed 1 cm/s", "speed at a band edge", "speed 1 cm/s below a band edge",
          "report age 0", "report age == timeout", "dispute", "release after exactly release_confirm_cycles",
-         "held one cycle short of release", "held to standstill (release 0)")
+         "held one cycle short of release", "held to standstill (release 0)",
+         # the obstacle memory, the leaky disagreement and the holds (issue 29)
+         "track created", "remembered with acceleration and oncoming closing", "remembered == EBI",
+         "remembered == EBI + 1", "remembered == SBI", "remembered == SBI + 1", "remembered == warning",
+         "blind, remembered inside EBI: emergency", "blind, held, remembered between EBI and SBI: emergency",
+         "track forgotten after exactly forget_cycles", "track one cycle short of forgotten",
+         "evidence broken by a stale cycle", "evidence broken by a dispute", "track beyond the sensor range kept",
+         "track exactly at the sensor range", "track 1 dm beyond the sensor range", "track passed",
+         "disputed farther sighting kept the track", "table demand held", "perceptor error by a flapping channel",
+         "disagreement cleared by a calm spell", "service held then released after exactly release_confirm_cycles")
 KINDS = ("band 2 on", "band 3 on", "one band", "release at standstill", "revocable release", "gradient > 0",
          "slippery < 1000", "2oo2", "speed error > 0", "FMU start values")
 
@@ -390,6 +589,29 @@ def test_the_generator_makes_exact_inputs_and_valid_configurations():
     for seed in range(2000):
         data = bytes((seed * 7919 + i * 104729) % 251 for i in range(200))
         decode_sequence(data)
+
+
+def test_a_known_blindness_goes_through_every_track_state(monitor_drivers):
+    """Guard against a generator that never exercises the memory: one hand-written story
+    (an obstacle seen, every channel lost, fresh unanimous ABSENT for forget_ms, then a near
+    obstacle seen and passed while no channel can tell), compared step by step; the
+    remembered obstacle keeps the emergency while no channel shows it."""
+    table = read("m1")
+    params = {"forget_ms": 1000}                       # 10 cycles of evidence
+    seen = ChannelInput(1, 60.0, 10.0, 0, True)
+    lost = ChannelInput(2, 0.0, 0.0, 0, True)          # DEGRADED: no evidence either way
+    steps = [(StepInput((seen,) * 6, 10.0), 1)] * 3
+    steps += [(StepInput((lost,) * 6, 10.0), 1)] * 3
+    steps += [(StepInput((CLEAR,) * 6, 10.0), 1)] * 11
+    steps += [(StepInput((seen._replace(distance=3.0),) * 6, 10.0), 1)]
+    steps += [(StepInput((lost,) * 6, 10.0), 1)] * 6
+    ref = MonitorReference(table, params)
+    outs = [ref.step(inp, c)[-1] for inp, c in steps]
+    states = [o.track_state for o in outs]
+    assert {TRACK_SEEN, TRACK_HELD, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_PASSED} <= set(states), states
+    assert states.index(TRACK_FORGOTTEN) == 3 + 3 + 9                # after exactly 10 evidence cycles
+    assert all(o.demand == 2 and o.reasons & R_MEMORY for o in outs[3:6]), outs[3:6]
+    _check(monitor_drivers[("m1", 2)], table, params, steps)
 
 
 def test_a_known_sequence_goes_through_every_mode(monitor_drivers):

@@ -12,7 +12,7 @@ from can_bus.clock import SimClock
 from can_bus.codec import Receiver
 from can_bus.runner import MonitorRunner
 from monitor.core import cycle as core
-from monitor.core.types import Report
+from monitor.core.types import EMERGENCY, NORMAL, SERVICE, Report
 from verification import fuzz
 from verification.report import Section
 
@@ -46,7 +46,7 @@ def test_quick_run_figures():
         assert r["rejected"].get(reason, 0) > 0, reason
     assert "undecodable" not in r["rejected"] and "unknown_id" not in r["rejected"]
     assert "error_or_remote_frame" not in r["rejected"]          # the old shared reason is gone
-    assert r["foreign_cycles"] > 0 and set(r["foreign_ids"]) == {"0x10", "0x40"}
+    assert r["foreign_cycles"] > 0 and set(r["foreign_ids"]) == {"0x10", "0x40", "0x41"}
     assert r["cycles"] > 0 and r["frames_per_s"] > 0
     # the same seed gives the same frames
     again = fuzz.run(8000, quiet, seed=5, workers=1)
@@ -60,7 +60,11 @@ def test_reference_layout_is_the_dbc():
     assert set(fuzz.LAYOUT) == {m.frame_id for m in db.messages}
     assert fuzz.OBSTACLES == codec.OBSTACLE_IDS and fuzz.TRAIN_STATE == codec.TRAIN_STATE_ID
     assert fuzz.INPUTS == codec.INPUT_IDS
-    assert fuzz.MONITORED == set(frames.MONITORED_IDS) and set(fuzz.OUTPUTS) == set(frames.OUTPUT_IDS)
+    assert fuzz.MONITORED == set(frames.MONITORED_IDS) and fuzz.OUTPUTS == codec.OUTPUT_IDS == frames.OUTPUT_IDS
+    assert fuzz.MONITOR_TRACK == codec.MONITOR_TRACK_ID
+    # the rate policing, read from docs/can.md, is the codec's
+    assert (fuzz.MAX_FRAMES_PER_WINDOW, fuzz.BABBLE_QUARANTINE_MS) == (codec.MAX_FRAMES_PER_WINDOW,
+                                                                       codec.BABBLE_QUARANTINE_MS)
     assert fuzz.KINDS == frames.KINDS and fuzz.BUS_STATES == frames.BUS_STATES
     assert fuzz.FOREIGN_HOLD_CYCLES == runner_mod.FOREIGN_HOLD_CYCLES
     # every reason is either covered by the fuzzing or named as unreachable through this front door
@@ -76,6 +80,10 @@ def test_reference_layout_is_the_dbc():
             start, length, signed, lo, hi = ours[s.name]
             assert (s.start, s.length, s.is_signed, s.byte_order) == (start, length, signed, "little_endian")
             assert round((s.minimum - s.offset) / s.scale) == lo and round((s.maximum - s.offset) / s.scale) == hi
+        # the unused bits (MonitorTrack's reserved 48-63 among them): exactly those no signal uses
+        used = sum(((1 << s.length) - 1) << s.start for s in msg.signals)
+        assert fuzz.UNUSED[msg.frame_id] == ~used & (2**64 - 1)
+    assert fuzz.UNUSED[fuzz.MONITOR_TRACK] == 0xFFFF << 48
 
 
 def test_reference_crc_and_unpacking_agree_with_the_codec():
@@ -84,9 +92,10 @@ def test_reference_crc_and_unpacking_agree_with_the_codec():
     signals = {0x20: {"Status": 1, "ObstacleType": 2, "Distance": 60000, "ClosingSpeed": -15000, "Module": 0},
                0x25: {"Status": 2, "Distance": 1, "ClosingSpeed": 15000, "Module": 2, "Channel": 1},
                0x30: {"Speed": 12000, "TrackCondition": 1, "BrakeStatus": 1},
-               0x10: {"Level": 2, "Warning": 1, "Reason": 8191, "Cycle": 2**32 - 1},
+               0x10: {"Level": 2, "Warning": 1, "Reason": 16383, "Cycle": 2**32 - 1},
                0x40: {"Mode": 3, "ForeignOutput": 1, "Node": 1023, "ErrorFlags": 63, "VotedDistance": 65535,
-                      "TableHash": 4095, "DeadlineMisses": 15}}
+                      "TableHash": 4095, "DeadlineMisses": 15},
+               0x41: {"TrackState": 5, "Memory": 1, "TrackDistance": 65535, "TrackAge": 65535}}
     for _ in range(17):
         for fid, sig in signals.items():
             data = sender.frame(fid, sig)
@@ -403,20 +412,40 @@ def test_planted_exception_swallowed_by_the_core_fail_safe_is_caught(monkeypatch
     assert any("fail-safe" in e["what"] and "planted" in e["what"] for e in r["examples"])
 
 
-def test_planted_core_state_outside_its_domain_is_caught(monkeypatch):
+def node_beyond_the_table(setup, new, out):
+    if new.cycle == 20:
+        return new._replace(node=setup.table.nodes), out._replace(node=setup.table.nodes)
+    return new, out
+
+
+def demand_below_the_level_held(setup, new, out):
+    if new.held == EMERGENCY and new.mode == NORMAL:
+        return new, out._replace(demand=SERVICE)      # an emergency held, a service demand sent
+    return new, out
+
+
+def track_never_ages(setup, new, out):
+    return new._replace(track_cycles=0), out._replace(track_cycles=0)     # a track held unseen stays 0 cycles old
+
+
+@pytest.mark.parametrize("change, what", [(node_beyond_the_table, "node"),
+                                          (demand_below_the_level_held, "below the level held 2"),
+                                          (track_never_ages, "track cycles")], ids=["node", "held", "track"])
+def test_planted_core_state_outside_its_domain_is_caught(monkeypatch, change, what):
+    """core.step with `change(setup, state, outputs) -> (state, outputs)` applied to its result."""
     real = core.step
-
-    def bad_node(setup, state, inputs, tick):
-        new, out = real(setup, state, inputs, tick)
-        if new.cycle == 20:
-            new = new._replace(node=setup.table.nodes)
-            out = out._replace(node=setup.table.nodes)
-        return new, out
-
-    monkeypatch.setattr(core, "step", bad_node)
+    monkeypatch.setattr(core, "step", lambda setup, state, inputs, tick: change(setup, *real(setup, state, inputs,
+                                                                                              tick)))
     r = planted_run(frames=3000)
     assert r["violations_by_kind"].get("domain", 0) > 0
-    assert any("node" in e["what"] for e in r["examples"])
+    assert any(what in e["what"] for e in r["examples"])
+
+
+def test_planted_monitor_track_without_the_memory_bit_is_caught(monkeypatch):
+    monkeypatch.setattr(runner_mod, "R_MEMORY", 0)     # the runner's MonitorTrack.Memory always 0
+    r = planted_run(frames=3000)
+    assert r["violations_by_kind"].get("cycle", 0) > 0
+    assert any("sent MonitorTrack" in e["what"] for e in r["examples"])
 
 
 # ----------------------------------------------------------------------------- found while fuzzing
@@ -428,7 +457,8 @@ class HandClock(SimClock):
 
 
 class SlowBus(fuzz.FrontDoorBus):
-    """Waiting for a frame lasts until the runner's next tick; a send can be made slow."""
+    """Waiting for a frame lasts until the runner's next tick; a cycle's sends can be made slow
+    (`send_ms` in all, spent on its first frame, BrakeDemand, whatever the number of frames)."""
 
     def __init__(self, clock: HandClock) -> None:
         super().__init__()
@@ -442,7 +472,8 @@ class SlowBus(fuzz.FrontDoorBus):
         return super()._recv_internal(timeout)
 
     def send(self, msg, timeout=None) -> None:
-        self.clock.sleep_until_ms(self.clock.now_ms() + self.send_ms)
+        if msg.arbitration_id == codec.BRAKE_DEMAND_ID:
+            self.clock.sleep_until_ms(self.clock.now_ms() + self.send_ms)
         super().send(msg)
 
 
@@ -459,7 +490,7 @@ def test_one_deadline_overrun_keeps_latched_ticks_within_now():
                 data = sender.frame(0x20 + ch, {"Status": 0, "Module": ch // 2, "Channel": ch % 2})
                 bus.pending.append(msg(0x20 + ch, data))
             bus.pending.append(msg(0x30, sender.frame(0x30, {"Speed": 0})))
-            bus.send_ms = 80 if k == 10 else 0     # cycle 10 ends 60 ms after its deadline: one overrun
+            bus.send_ms = 160 if k == 10 else 0    # cycle 10 ends 60 ms after its deadline: one overrun
             runner.run(cycles=1)
             rec = runner.records[-1]
             late += [(rec.tick, r.tick) for r in runner.receiver.reports if r is not None and r.tick > rec.tick]

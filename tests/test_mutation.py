@@ -104,12 +104,12 @@ def test_every_operator_is_generated_and_the_mutants_parse():
 
 # the C mutants named by issue 14 that the comparison missed before its generator hit the
 # exact boundaries: the exact distance tolerance, exactly alpha2, 1 cm/s and standstill in
-# the latch, the ABSENT -> PRESENT direction of a disagreement, one module's flag, and the
-# three modules' status when all but one see the obstacle
-C_SUBSET = ("fmu/c/core/rg_core.c:336:58:cmp:>=", "fmu/c/core/rg_core.c:593:21:cmp:<",
-            "fmu/c/core/rg_core.c:658:69:cmp:>=", "fmu/c/core/rg_core.c:658:71:int:1",
-            "fmu/c/core/rg_core.c:326:16:cmp:!=", "fmu/c/core/rg_core.c:361:27:bool:&&",
-            "fmu/c/core/rg_core.c:361:67:bool:&&")
+# the hold (the latch before issue 29), the ABSENT -> PRESENT direction of a disagreement,
+# one module's flag, and the three modules' status when all but one see the obstacle
+C_SUBSET = ("fmu/c/core/rg_core.c:362:58:cmp:>=", "fmu/c/core/rg_core.c:619:21:cmp:<",
+            "fmu/c/core/rg_core.c:727:19:cmp:<", "fmu/c/core/rg_core.c:727:22:int:1",
+            "fmu/c/core/rg_core.c:352:16:cmp:!=", "fmu/c/core/rg_core.c:387:27:bool:&&",
+            "fmu/c/core/rg_core.c:387:67:bool:&&")
 
 
 def test_c_core_subset_is_killed_by_the_comparison_alone():

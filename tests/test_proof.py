@@ -1,8 +1,8 @@
 """The Frama-C proof of the C core (verification/proof.py, docs/proof.md).
 
 (a) the committed sources: every WP goal proved, EVA 0 alarms on rg_step and the table check;
-(b) planted bugs in the C voters, the braking curves and the latch make the proof fail on the
-    goal of the broken property;
+(b) planted bugs in the C voters, the braking curves, the hold, the choice of the supervised
+    obstacle and the obstacle memory make the proof fail on the goal of the broken property;
 (c) every contracted function carries its ACSL contract (requires/assigns/ensures).
 No skip when Frama-C is missing: the proof is part of CI (apt-get install frama-c-base why3
 z3 cvc4), so a missing tool is a failure, as it is in `railguard verify`.
@@ -104,13 +104,64 @@ def test_planted_bug_curve_rounding_fails_the_proof():
     assert r["wp"]["failed"] and all(g.startswith("typed_rg_run_dm_ensures") for g in r["wp"]["failed"]), r["wp"]["failed"]
 
 
+def _planted(old: str, new: str, functions: tuple[str, ...], expect: tuple[str, ...]) -> list[str]:
+    """Plant `new` for `old` (once) in rg_core.c and prove `functions`: the proof must fail,
+    on goals of `expect` only, and on each of them; returns the failed goals."""
+    assert SOURCE.count(old) == 1, old
+    r = proof.run_modified(SOURCE.replace(old, new), functions=functions)
+    failed = r["wp"]["failed"]
+    assert not r["ok"] and failed, r["wp"]
+    assert all(any(g.startswith(f"typed_{fn}_") for fn in expect) for g in failed), failed
+    assert all(any(g.startswith(f"typed_{fn}_") for g in failed) for fn in expect), failed
+    return failed
+
+
 def test_planted_bug_late_release_fails_the_proof():
     """The revocable release one cycle late (calm reaches confirm while still held)."""
-    bug = SOURCE.replace("if (calm >= confirm - 1) {", "if (calm >= confirm) {")
-    assert bug != SOURCE
-    r = proof.run_modified(bug, functions=("rg_latch",))
-    assert not r["ok"]
-    assert r["wp"]["failed"] and all(g.startswith("typed_rg_latch") for g in r["wp"]["failed"]), r["wp"]["failed"]
+    failed = _planted("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm) {", ("rg_hold",), ("rg_hold",))
+    assert any(g.startswith("typed_rg_hold_ensures") for g in failed), failed
+
+
+# ---- issue 29: the hold and the obstacle memory
+
+def test_planted_bug_early_release_fails_the_proof():
+    """(a) The hold lowers an emergency (or a service brake) one cycle early: released after
+    release_confirm_cycles - 1 calm cycles. rg_decide, which relies on rg_hold's contract,
+    still proves; rg_hold's own postconditions do not."""
+    _planted("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm - 2) {", ("rg_hold", "rg_decide"),
+             ("rg_hold",))
+
+
+def test_planted_bug_remembered_obstacle_ignored_when_blind_fails_the_proof():
+    """(a) The supervision ignores the remembered obstacle when no channel shows an obstacle
+    (the common-cause blindness the memory exists for): the remembered obstacle inside EBI
+    no longer demands emergency."""
+    failed = _planted("    if (remembered) {\n        track_demand",
+                      "    if (remembered && voted_dm != RG_NO_DISTANCE) {\n        track_demand",
+                      ("rg_supervised_demand",), ("rg_supervised_demand",))
+    assert "typed_rg_supervised_demand_ensures_2" in failed, failed     # track_dm <= track EBI ==> emergency
+
+
+def test_planted_bug_prediction_without_speed_error_fails_the_proof():
+    """(b) The track's prediction drops the speed measurement error (the train may be faster
+    than it says): the remembered gap shrinks too little per cycle."""
+    _planted("const int64_t x = speed_cms * (1000 + error_permille);", "const int64_t x = speed_cms * 1000;",
+             ("rg_near_travel",), ("rg_near_travel",))
+
+
+def test_planted_bug_prediction_without_acceleration_fails_the_proof():
+    """(b) The track's prediction drops the train's acceleration (traction plus downhill).
+    Python's two postconditions of near_travel do not see this one; the C contract's third,
+    with every term, does."""
+    _planted("return v_max * period_ms + run + obstacle_cms * period_ms;",
+             "return v_max * period_ms + obstacle_cms * period_ms;", ("rg_near_travel",), ("rg_near_travel",))
+
+
+def test_planted_bug_forget_outside_sensor_range_fails_the_proof():
+    """(c) Absence counts as evidence wherever the remembered obstacle is, also beyond the
+    sensors' declared range, where ABSENT says nothing about it."""
+    _planted("if (!evidence || far > (int64_t)range_dm * RG_UNITS_PER_DM) {", "if (!evidence) {", ("rg_forget",),
+             ("rg_forget",))
 
 
 def test_missing_frama_c_is_a_failed_check(monkeypatch, tmp_path):
@@ -134,7 +185,8 @@ def _contract(function: str) -> str:
 
 # functions whose arithmetic needs its arguments' ranges (as the Python preconditions say)
 RANGED = ("rg_age_ms", "rg_gradient_accel_mms2", "rg_scaled_decel_mms2", "rg_effective_decel_mms2", "rg_run_dm",
-          "rg_speed_after_cms", "rg_band_stop", "rg_obstacle_run_dm", "rg_cap_dm", "rg_latch")
+          "rg_speed_after_cms", "rg_band_stop", "rg_obstacle_run_dm", "rg_cap_dm", "rg_hold", "rg_decide",
+          "rg_accel_run", "rg_near_travel", "rg_far_travel", "rg_observe", "rg_forget")
 
 
 @pytest.mark.parametrize("function", proof.FUNCTIONS)
@@ -153,14 +205,29 @@ def test_contracts_state_the_python_properties():
     assert r"*distance == \min(da, db)" in _contract("rg_vote_2oo2")
     assert "*distance == rg_min3(d[0], d[1], d[2])" in _contract("rg_vote_3oo3")
     assert "s[0] != s[1] || s[1] != s[2] ==> *error == 1" in _contract("rg_vote_3oo3")
-    assert "latched != 0 && speed_cms > 0 && revocable == 0 ==> \\result == 1" in _contract("rg_latch")
-    assert "*calm_out < confirm && (revocable != 0 || *calm_out == 0)" in _contract("rg_latch")
+    assert "0 <= demand <= 2 && level == 2 && speed_cms > 0 && revocable == 0 ==> \\result == 2" in _contract("rg_hold")
+    assert "speed_cms > 0 && calm + 1 < confirm ==> \\result >= level" in _contract("rg_hold")
+    assert "*calm_out < confirm && (*calm_out == 0 || *calm_out == calm + 1)" in _contract("rg_hold")
+    assert "demand == 2 && level <= 2 ==> \\result == 2" in _contract("rg_hold")
+    assert "speed_cms > 0 && zone_free == 0 ==> \\result >= level" in _contract("rg_table_hold")
     assert "\\result >= envelope && \\result >= table_demand && \\result >= error_demand" in _contract("rg_combine")
     assert "\\result * 200000000 >= rg_run_num(speed_cms, accel_mms2, time_ms)" in _contract("rg_run_dm")
     assert "\\result * 1000 <= decel_mms2 * factor_permille" in _contract("rg_scaled_decel_mms2")
     assert "track == 0 && brake == 0 ==> \\result == decel_mms2 - gradient_mms2" in _contract("rg_effective_decel_mms2")
     assert "present != 0 && distance_dm <= ebi_dm ==> \\result == 2" in _contract("rg_supervision_demand")
     assert "rg_fresh_p(received, now, limit) ==> \\result == now - received" in _contract("rg_age_ms")
+    # issue 29: a demand a curve raised is not lowered while the train is inside that curve for
+    # the remembered obstacle: the choice of the supervised obstacle, and the whole decision
+    assert "remembered != 0 && track_dm <= track_ebi_dm ==> \\result == 2" in _contract("rg_supervised_demand")
+    assert "held == 2 && remembered != 0 && track_dm <= track_sbi_dm ==> \\result == 2" \
+        in _contract("rg_supervised_demand")
+    decide = _contract("rg_decide")
+    assert "track_sup != 0 && track_dm <= remembered->ebi_dm ==> d->env == 2 && d->final_demand >= 2" in decide
+    assert "level == 2 && track_sup != 0 && track_dm <= remembered->sbi_dm ==> d->env == 2" in decide
+    # the memory: every term of the prediction, no evidence outside the sensor range
+    assert "+ accel_mms2 * period_ms * period_ms + 20000 * obstacle_cms * period_ms" in _contract("rg_near_travel")
+    assert "*state == 4 ==> evidence != 0 && 0 <= far <= range_dm * 10000" in _contract("rg_forget")
+    assert "confirmed == 0 && \\old(track->near) != -1 ==>" in _contract("rg_observe")
 
 
 def test_planted_runtime_error_is_an_eva_alarm():

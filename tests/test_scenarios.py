@@ -57,6 +57,7 @@ def test_unknown_keys_are_refused(tmp_path, text, match):
     ("train = 3\n", "train.*must be a table"),
     ("[train]\ntrack = 'icy'\n", "train.track = 'icy'.*normal, slippery"),
     ("[[obstacles]]\ntype = 'cow'\n", r"obstacles\[0\].type = 'cow'"),
+    ("[[obstacles]]\nleave_s = 'soon'\n", r"obstacles\[0\].leave_s.*a number"),
     ("[[faults]]\nkind = 'gremlins'\nchannel = 1\nstart_s = 1.0\n", "gremlins"),
 ])
 def test_wrong_types_are_refused(tmp_path, text, match):
@@ -73,6 +74,12 @@ def test_wrong_types_are_refused(tmp_path, text, match):
     ("[sensors]\nmiss_probability = 1.0\n", "miss_probability"),
     ("[sensors]\nrange_m = 0\n", "sensors.range_m = 0"),
     ("[[faults]]\nkind = 'silence'\nchannel = 6\nstart_s = 1.0\n", r"faults\[0\].channel = 6"),
+    ("[[obstacles]]\nleave_s = -1.0\n", r"obstacles\[0\].leave_s = -1.0: must be in \[0, 1e\+09\]"),
+    ("[[obstacles]]\nleave_s = 2e9\n", r"obstacles\[0\].leave_s = 2000000000.0: must be in"),
+    ("[[obstacles]]\nleave_s = inf\n", r"obstacles\[0\].leave_s.*finite"),
+    ("[[obstacles]]\nappear_s = 5.0\nleave_s = 5.0\n", r"obstacles\[0\].leave_s = 5: must be after appear_s = 5"),
+    ("[[obstacles]]\nposition_m = 400\n[[obstacles]]\nappear_s = 5.0\nleave_s = 2.0\n",
+     r"obstacles\[1\].leave_s = 2: must be after appear_s = 5"),
     ("[[faults]]\nkind = 'silence'\nchannel = 1\nstart_s = 5.0\nend_s = 2.0\n", "end_s = 2 must be after start_s"),
     ("[[faults]]\nkind = 'silence'\nstart_s = 5.0\n", "needs a channel"),
     ("[[faults]]\nkind = 'blind'\nchannel = 2\nstart_s = 5.0\n", "every channel"),
@@ -106,6 +113,34 @@ def test_a_file_of_ones_own_and_its_defaults(tmp_path):
     assert s.train.emergency_at(10.0) == 2.4 and s.train.emergency_at(31.0) == 2.2
     assert s.obstacles == (sc.ObstacleSpec(500.0),) and s.sensors == sc.SensorSpec() and s.table is None
     assert sc.players(s) == ("run", "cosim")            # no [campaign] table: not one of the campaign's worlds
+
+
+def test_an_obstacle_leaves_the_track_at_leave_s(tmp_path):
+    """leave_s (issue 29 item 4): the obstacle is on the track from appear_s until leave_s;
+    absent, it never leaves. run and cosim play it (cosim as the train FMU's
+    obstacle.leave_time), the campaign refuses it in one line; a Scenario built in code is
+    checked the same way as a file."""
+    from dataclasses import replace
+
+    from fmu import scenario as cosim_scenarios
+
+    assert sc.ObstacleSpec().leave_s == sc.FOREVER_S
+    s = sc.load(write(tmp_path, "[[obstacles]]\nposition_m = 400\nappear_s = 1.0\nleave_s = 3.5\n"))
+    (o,) = s.obstacles
+    assert (o.appear_s, o.leave_s) == (1.0, 3.5)
+    assert [o.there(t) for t in (0.9, 1.0, 3.4, 3.5, 100.0)] == [False, True, True, False, False]
+    assert sc.ObstacleSpec().there(1e6)
+    assert sc.players(s) == ("run",)                    # appear_s = 1: not cosim; no [campaign]: not the campaign
+    now = sc.load(write(tmp_path, "[[obstacles]]\nposition_m = 400\nleave_s = 3.5\n[campaign]\n", "now.toml"))
+    assert sc.players(now) == ("run", "cosim")
+    assert sc.refusal(now, "campaign") == \
+        "obstacles[0].leave_s: the campaign's obstacles stay on the track; it plays no leave_s"
+    assert cosim_scenarios.adapt(now).train["obstacle.leave_time"] == 3.5
+    assert cosim_scenarios.adapt(sc.load("static-700m-30")).train["obstacle.leave_time"] == sc.FOREVER_S
+    sc.check(now)
+    with pytest.raises(sc.ScenarioError, match=r"obstacles\[0\].leave_s = 0: must be after appear_s = 0") as exc:
+        sc.check(replace(now, obstacles=(replace(o, appear_s=0.0, leave_s=0.0),)))
+    assert "\n" not in str(exc.value)
 
 
 def test_monitor_and_braking_become_one_configuration(tmp_path):

@@ -1,8 +1,10 @@
 """Adaptive stress testing (verification/stress/, `railguard stress`): the disturbance
-model's likelihoods, the boundary of blindness the supervision survives at the EBI edge, the
+model's likelihoods and its calibration to seed 002, the window that covers every encounter
+until standstill, the boundary of blindness the supervision survives at the EBI edge, the
 failure the search found (a blackout during emergency braking releases the revocable
 emergency) kept as a regression test, its candump log replayed by `railguard replay`, the
-importance-sampling estimator, and the command as a user runs it."""
+importance-sampling estimator and the coverage of its interval, and the command as a user
+runs it."""
 from __future__ import annotations
 
 import json
@@ -13,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import binom, binomtest
 
 from fmu.scenario import load as load_cosim
 from monitor.core.config import Config
@@ -37,6 +40,38 @@ def test_log_likelihood_against_the_undisturbed_run():
     assert st.log_weight(d, st.NOMINAL) == 0.0
 
 
+def test_the_misses_are_calibrated_to_seed_002():
+    """Sampled from the nominal model (the blindness chain starts stationary, so no burn-in
+    is skipped): every channel is blind together 0.2 % of the cycles (beta 5 % of p_n), a
+    blindness goes on with 0.9 (1 s on average), and each channel misses 4 % of the cycles
+    (seed 002's p_n). 48 million cycles of the chain (a blindness lasts 10 cycles, so its
+    share is known to about 1.5 %) and 300,000 of the channels."""
+    assert st.P_BLIND == pytest.approx(st.BETA * st.P_MISS) == pytest.approx(0.002)
+    p_s, stays = st.DISTURBANCES["blind"], st.BLIND_STAYS
+    assert p_s / (p_s + 1 - stays) == pytest.approx(st.P_BLIND) and p_s == pytest.approx(2.004e-4, rel=1e-3)
+    assert st.P_BLIND + (1 - st.P_BLIND) * st.DISTURBANCES["miss"] == pytest.approx(st.P_MISS)
+    rng = np.random.default_rng(2)
+    blind = st.NOMINAL.blind_chains(rng, 160_000)
+    assert blind.mean() == pytest.approx(0.002, rel=0.05)
+    assert blind[:, 0].mean() == pytest.approx(0.002, rel=0.2)              # stationary from the first cycle
+    goes_on = blind[:, 1:][blind[:, :-1]]
+    assert goes_on.mean() == pytest.approx(0.9, abs=0.01)
+    ds = st.NOMINAL.sample(rng, 1000)
+    missed = np.stack([d.blind[:, None] | d.miss for d in ds])              # (1000, WINDOW, 6)
+    assert missed.mean() == pytest.approx(0.04, rel=0.03)
+    assert np.all(np.abs(missed.mean(axis=(0, 1)) / 0.04 - 1) < 0.05)      # each channel
+
+
+def test_the_window_covers_every_encounter_until_standstill():
+    """Undisturbed, every encounter on every corner of the braking declaration stands still
+    (or collides) inside the window, with at least 5 s to spare for a braking that
+    disturbances delay: a blindness late in the braking is sampled too."""
+    for world in wt.corners(Config()):
+        for enc in st.ENCOUNTERS.values():
+            res = st.closed_loop("m2", enc, st.Disturbance.none(), world)
+            assert 0 < res["cycles"] <= st.WINDOW - 50, (enc.name, world.describe(), res)
+
+
 def test_blindness_the_supervision_survives_at_the_ebi_edge():
     """An object appears one cycle of travel beyond EBI (30 m/s, the declaration's worst
     train): undisturbed, the train stops about 27 m short; every channel blind for 0.8 s
@@ -56,19 +91,27 @@ def test_blindness_the_supervision_survives_at_the_ebi_edge():
     assert abs(st.closed_loop("m2", ENC, lost, CORNER)["closest_m"] - calm["closest_m"]) < 0.5
 
 
-def test_the_found_failure_a_blackout_during_emergency_braking_releases_it():
-    """Regression test of the search's finding (tests/data/stress): every channel blind for
-    1.2 s, 2.2 s into the emergency braking, revokes the emergency (its cause looks gone
-    for release_confirm_cycles), the train runs on and can no longer stop. Held to
-    standstill (emergency_release = 0), the same blackout is survived."""
+@pytest.mark.parametrize("model", ["m1", "m2"])
+def test_the_found_failure_a_blackout_during_emergency_braking_is_now_survived(model):
+    """Regression test of the search's finding before the obstacle memory (tests/data/stress):
+    every channel blind for 1.2 s, 2.2 s into the emergency braking, revoked the emergency
+    (its cause looked gone for release_confirm_cycles) and the train could no longer stop.
+    Now the remembered obstacle stays inside the curve and the train stops about as far from
+    it as undisturbed; with a forgetting time of one cycle the old failure comes back (m2,
+    the table it was found with)."""
     data = json.loads((FOUND / "m2-edge-30-blackout-releases-emergency.json").read_text())
-    d = st.Disturbance.from_lists(data["disturbance"])
-    assert d.log_likelihood() == pytest.approx(data["log_likelihood"], abs=1e-3)
-    assert {e["kind"] for e in data["events"]} == {"blind"}
-    res = st.closed_loop("m2", ENC, d, CORNER)
-    assert res["failure"] and res["collision"] and res["released"] and not res["unavoidable"]
-    held = st.closed_loop("m2", ENC, d, CORNER, Config(emergency_release=0))
-    assert not held["failure"] and not held["released"] and held["closest_m"] > 20.0
+    d = st.Disturbance.from_lists(data["disturbance"])          # written with a window of 100 cycles
+    assert {e["kind"] for e in data["events"]} == {"blind"} and np.flatnonzero(d.blind).tolist() == list(range(22, 34))
+    # under the calibrated model (data["log_likelihood"], -9.65, is the former one's): it
+    # begins, goes on 11 times and ends, where the undisturbed run stays clear 13 times
+    p_s, stays = st.DISTURBANCES["blind"], st.BLIND_STAYS
+    assert d.log_likelihood() == pytest.approx(math.log(p_s) + 11 * math.log(stays) + math.log(1 - stays)
+                                               - 13 * math.log1p(-p_s), abs=1e-9) == pytest.approx(-11.97, abs=0.01)
+    calm = st.closed_loop(model, ENC, st.Disturbance.none(), CORNER)
+    res = st.closed_loop(model, ENC, d, CORNER)
+    assert not res["failure"] and not res["released"] and abs(res["closest_m"] - calm["closest_m"]) < 1.0
+    forgetful = st.closed_loop(model, ENC, d, CORNER, Config(forget_ms=100))
+    assert model == "m1" or forgetful["failure"] and forgetful["collision"] and forgetful["released"] and not forgetful["unavoidable"]
 
 
 def test_a_failure_replays_from_its_candump_log(tmp_path):
@@ -78,11 +121,12 @@ def test_a_failure_replays_from_its_candump_log(tmp_path):
     assert st.replay_matches("m2", ENC, d, CORNER, Config(), log)
     lines = log.read_text().splitlines()
     assert all(line.startswith("(") and " vcan0 " in line for line in lines)
-    # a log that lost the obstacle's reports at the appearance no longer tells the same story
-    first_report = next(i for i, line in enumerate(lines) if " 020#" in line and float(line[1:line.index(")")]) > 2.5)
+    # a log that lost the obstacle channels' first second no longer tells the same story (the
+    # monitor stays in INIT, braking, where the closed loop let the train enter)
+    t0 = float(lines[0][1:lines[0].index(")")])
     cut = tmp_path / "cut.log"
-    cut.write_text("\n".join(line for i, line in enumerate(lines)
-                             if not (" 02" in line and 0 <= i - first_report < 400)) + "\n")
+    cut.write_text("\n".join(line for line in lines
+                             if not (" 02" in line and float(line[1:line.index(")")]) - t0 < 1.0)) + "\n")
     assert not st.replay_matches("m2", ENC, d, CORNER, Config(), cut)
 
 
@@ -92,9 +136,56 @@ def test_importance_sampling_with_the_nominal_proposal_is_naive_monte_carlo():
     root = np.random.SeedSequence(3)
     cfg = Config(emergency_release=0)
     rare = st.rare_events("m2", ENC, st.NOMINAL, CORNER, cfg, 0.0, 60, root, Cluster(1))
-    assert rare["failures_in_is_samples"] == round(rare["p_importance_sampling"] * 60)    # every weight is 1
-    assert rare["effective_sample_size"] == pytest.approx(rare["failures_in_is_samples"]) or rare["failures_in_is_samples"] == 0
-    assert 0.0 <= rare["ci95"][0] <= rare["p_importance_sampling"] <= rare["ci95"][1]
+    k = rare["failures_in_is_samples"]
+    assert k == round(rare["p_importance_sampling"] * 60)                                   # every weight is 1
+    assert rare["effective_failures"] == pytest.approx(k)
+    if k:                                                    # the exact binomial interval
+        exact = binomtest(k, 60).proportion_ci(method="exact")
+        assert rare["ci95"] == pytest.approx([exact.low, exact.high])
+    else:
+        assert rare["ci95"] == [0.0, pytest.approx(st.NO_FAILURE / 60)]
+    assert 0.0 <= rare["ci95"][0] <= rare["p_importance_sampling"] < rare["ci95"][1]
+
+
+def _synthetic(rng, reps: int, n: int, m: int, a: float, b: float, k: int) -> tuple[float, np.ndarray]:
+    """An event with an exact answer: m independent events, each a likely nominally and b
+    likely under the proposal; a failure when k or more happen (P = binom.sf(k - 1, m, a)).
+    `reps` repetitions of n importance samples from the defensive mixture, as the weighted
+    failure indicators y = w 1{failure} that rare_events averages."""
+    nominal = rng.random((reps, n)) < st.DEFENSIVE
+    x = np.where(nominal, rng.binomial(m, a, (reps, n)), rng.binomial(m, b, (reps, n)))
+    q_over_p = (b / a) ** x * ((1 - b) / (1 - a)) ** (m - x)
+    w = 1.0 / (st.DEFENSIVE + (1 - st.DEFENSIVE) * q_over_p)
+    return float(binom.sf(k - 1, m, a)), np.where(x >= k, w, 0.0)
+
+
+@pytest.mark.parametrize("n, m, a, b, k", [
+    (1000, 20, 0.01, 0.15, 3),      # P = 1.0e-3, a good proposal: 132 effective failures on average
+    (3000, 20, 0.01, 0.02, 3),      # P = 1.0e-3, a poor one: 12
+    (1000, 20, 0.01, 0.015, 3),     # P = 1.0e-3, a poor one: 2, none in 11 % of the repetitions
+    (1000, 20, 0.03, 0.15, 3),      # P = 2.1e-2, a good proposal: 167
+    (1000, 20, 0.03, 0.04, 3),      # P = 2.1e-2, a poor one: 32
+])
+def test_the_importance_sampling_interval_keeps_its_coverage(n, m, a, b, k):
+    """1000 repetitions of an event with an exact answer: the 95 % interval (Clopper-Pearson on
+    the effective failures; 0 .. NO_FAILURE / n with none) covers the truth in at least 93 %
+    of them. Measured (seed 29, the cases in order): 97.2, 97.4, 98.3, 97.0 and 96.1 %; the
+    normal interval it replaced covered 95.3, 93.5, 88.4, 95.8 and 93.7 % of the same ones."""
+    truth, y = _synthetic(np.random.default_rng(29), 1000, n, m, a, b, k)
+    assert np.mean([lo <= truth <= hi for lo, hi in map(st.weighted_interval, y)]) >= 0.93
+
+
+def test_the_importance_sampling_interval_without_failures():
+    """No failure in n samples: the upper end is the rule of three at 2.5 % scaled by the
+    largest weight, above 0; with equal weights the interval is the exact binomial one."""
+    lo, hi = st.weighted_interval(np.zeros(2000))
+    assert lo == 0.0 and hi == pytest.approx(-math.log(0.025) * st.W_MAX / 2000) and hi > 0.0
+    assert st.effective_failures(np.zeros(2000)) == 0.0
+    y = np.r_[np.ones(3), np.zeros(997)]
+    exact = binomtest(3, 1000).proportion_ci(method="exact")
+    assert st.weighted_interval(y) == pytest.approx((exact.low, exact.high))
+    assert st.effective_failures(np.r_[0.5, 0.5, 0.5, np.zeros(97)]) == pytest.approx(3.0)
+    assert st.effective_failures(np.r_[1.0, 0.01, 0.01, np.zeros(97)]) == pytest.approx(1.04, abs=0.01)
 
 
 def test_railguard_stress_quick_finds_a_failure_that_replays(tmp_path):
@@ -109,4 +200,6 @@ def test_railguard_stress_quick_finds_a_failure_that_replays(tmp_path):
     assert scen.train["initial_speed"] == 30.0 and scen.train["sensor.range"] == out["appear_m"]
     rare = out["rare_event"]
     assert rare["samples"] == 400 and 0.0 < rare["p_importance_sampling"] < 1.0
+    assert rare["ci95"][0] <= rare["p_importance_sampling"] <= rare["ci95"][1] and rare["ci95"][1] > 0.0
+    assert "equally weighted failures" in st.render(out)
     assert (tmp_path / "stress.json").is_file() and (tmp_path / "stress-m2-edge-30.png").read_bytes()[:4] == b"\x89PNG"

@@ -75,6 +75,9 @@ def test_no_collision_in_the_grid(curves_loop):
     assert s["collisions"] == 0 and not bad, bad[:5]
     assert s["min_margin_m"] > 0
     assert all(o.first_brake_s is not None and o.first_brake_s >= acc.APPROACH_S - 0.11 for o in outcomes)
+    chatter = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.demand_changes)
+               for o in outcomes if o.demand_changes > 2]
+    assert not chatter, chatter[:5]                      # issue 29: a clean stop, at most 2 demand changes
 
 
 @pytest.mark.parametrize("table", ["m1", "m2"])
@@ -85,6 +88,53 @@ def test_the_shipped_tables_keep_the_hardest_trains_safe(table, monitor_fmus, tr
     with cosim.Loop(monitor_fmus[(table, 2)], train_fmu) as loop:
         outcomes, _ = acc.run_cases(loop, PARAMS, acc.cases(CFG, worlds))
     assert acc.summary(outcomes)["collisions"] == 0
+    chatter = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.demand_changes)
+               for o in outcomes if o.demand_changes > 2]
+    assert not chatter, chatter[:5]                      # issue 29 item 6: the table's hold
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+@pytest.mark.parametrize("speed, decel", [(40.0, 3.0), (30.0, 1.5)])
+def test_the_table_ends_a_slippery_encounter_in_a_clean_stop(table, speed, decel, monitor_fmus, train_fmu):
+    """Issue 29 item 6, as the assessor tried it: guaranteed 1.5 m/s^2 with 2.5 s build-up
+    declared, slippery track reported, a static obstacle first seen 1,700 m ahead, the train
+    braking at `decel` (the m2 table used to toggle service/none 118 times at 40 m/s and
+    creep on at 0.2 m/s): now at most 2 demand changes and a stop before the obstacle."""
+    values = {**VALUES, "emergency_decel": 1.5, "service_decel": 0.8, "emergency_buildup_s": 2.5}
+    world = acc.World(((0.0, decel),), 0.8 * decel / 1.5, 2.5, 0.0, 0.0, 0.0, 0.0, 0.5, track=1)
+    case = acc.Case(world, speed, 0.0, 1700.0)
+    with cosim.Loop(monitor_fmus[(table, 2)], train_fmu) as loop:
+        [o], _ = acc.run_cases(loop, acc.monitor_params(values), [case])
+    assert o.outcome == "stopped" and o.stop_margin_m > 0
+    assert o.demand_changes <= 2, o.demand_changes
+
+
+BLIND_AFTER_S = (0.3, 2.0, 5.0)         # after the first brake demand
+BLIND_FOR_S = (1.0, 3.0, 7.0)           # every one shorter than forget_ms (7.5 s)
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_every_blindness_shorter_than_the_forgetting_time_ends_in_a_stop(table, monitor_fmus, train_fmu):
+    """Issue 29 acceptance: every channel blind (the train FMU's `blind` fault), beginning
+    after the obstacle was voted and lasting less than the forgetting time, at every speed of
+    the grid, for the grid's hardest train, against static and oncoming obstacles: the train
+    stops before the obstacle (before the obstacle memory, half such runs collided)."""
+    from fmu.scenario import FAULT_KINDS
+
+    blind = FAULT_KINDS.index("blind")
+    outcomes = []
+    with cosim.Loop(monitor_fmus[(table, 2)], train_fmu) as loop:
+        for case in hardest_cases():
+            calm = loop.run(case.train_params(), PARAMS, acc.MAX_RUN_S, record=False, until_standstill=True)
+            for after in BLIND_AFTER_S:
+                for length in BLIND_FOR_S:
+                    start = calm.first_brake_s + after
+                    params = {**case.train_params(), "fault.kind": blind, "fault.start": start,
+                              "fault.end": start + length}
+                    res = loop.run(params, PARAMS, acc.MAX_RUN_S, record=False, until_standstill=True)
+                    outcomes.append((case.speed, case.obstacle_speed, after, length, res.outcome))
+    bad = [o for o in outcomes if o[-1] != "stopped"]
+    assert len(outcomes) == 4 * 3 * 9 and not bad, bad[:5]
 
 
 def test_the_grid_collides_against_the_old_nominal_envelope(curves_loop):

@@ -162,6 +162,31 @@ def test_an_oncoming_obstacle_reaching_a_standing_train_is_not_our_collision(tra
     assert t.get("collided") and t.get("impact_speed") == 0.0
 
 
+CHANNELS = [f"ch{c}.status" for c in range(1, 7)]
+
+
+def test_an_obstacle_that_left_the_track_is_neither_seen_nor_reached(train):
+    """obstacle.leave_time (issue 29 item 4): a vehicle 60 m ahead leaves the track at 1 s.
+    Before, every channel sees it; from the first sample at 1 s on, every channel reports
+    ABSENT and true_distance is 1e9 (no obstacle); the train, not braking at 20 m/s, runs
+    through where it stood (60 m, at 3 s) without contact. Without leave_time it collides."""
+    params = dict(initial_speed=20.0, obstacle__position=60.0, sensor__noise_sigma=0.0, davis_a=0.0, davis_b=0.0,
+                  davis_c=0.0, max_traction=0.0)
+    t = train(obstacle__leave_time=1.0, **params)
+    assert t.get("obstacle.leave_time") == 1.0
+    rows = t.run(0, 5.0, watch=("true_distance", "collided", *CHANNELS))
+    times = [round(0.01 * (i + 1), 2) for i in range(len(rows))]
+    before = [r for ti, r in zip(times, rows) if ti < 1.0]
+    after = [r for ti, r in zip(times, rows) if ti >= 1.0]
+    assert all(0 < r[0] < 60.0 and r[2:] == (1,) * 6 for r in before)
+    assert all(r[0] == 1e9 and not r[1] and r[2:] == (0,) * 6 for r in after)
+    assert t.get("position") == pytest.approx(100.0) and t.get("impact_speed") == 0.0
+    stays = train(**params)
+    stays.run(0, 5.0)
+    assert stays.get("obstacle.leave_time") == 1e9                    # the default: never
+    assert stays.get("collided") and stays.get("impact_speed") == pytest.approx(20.0)
+
+
 @pytest.mark.parametrize("params, name", [
     ({"emergency_band3_speed": 30.0}, "emergency_band3_speed"),
     ({"emergency_band2_speed": 30.0, "emergency_band2_decel": 0.5}, "emergency_band2_decel"),
@@ -169,6 +194,7 @@ def test_an_oncoming_obstacle_reaching_a_standing_train_is_not_our_collision(tra
     ({"degraded_factor": 1.5}, "degraded_factor"),
     ({"speed_error": 0.6}, "speed_error"),
     ({"traction_cutoff": 31.0}, "traction_cutoff"),
+    ({"obstacle.leave_time": -1.0}, "obstacle.leave_time"),
 ])
 def test_bad_world_parameters_are_refused_by_name(train_fmu, params, name):
     t = Train(train_fmu)

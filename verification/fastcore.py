@@ -5,9 +5,14 @@ repeats (all channels fresh, in range and agreeing, the train input valid), so t
 pass the picture through and no error rule fires. What remains of a cycle is computed here
 with the same integer formulas as monitor/core, written again on arrays: the braking curves
 of `monitor.core.braking` (EBD, EBI, SBI, warning: every term rounded to the safe side), the
-table's zones under normal conditions, the observation, the table step, the supervision
-ladder (warning, service at SBI, emergency at EBI, held inside SBI), the emergency latch
-with its release (revocable after `release_confirm_cycles` calm cycles, or held to
+table's zones under normal conditions, the observation, the table step, the obstacle memory
+of `monitor.core.memory` (every PRESENT picture is confirmed and creates the track; an ABSENT
+one, all channels fresh, is evidence that it is gone: the track is predicted worst case each
+cycle, forgotten after `forget_cycles` of evidence inside `sensor_range_dm`, or once passed),
+the supervision ladder (warning, service at SBI, emergency at EBI, held inside SBI) on the
+nearer of the voted and the remembered obstacle, the table's hold (its demand kept while the
+voted picture is in the table's zones), the hold of the demand sent (lowered after
+`release_confirm_cycles` cycles asking for less; an emergency only if revocable; released at
 standstill) and the reason bits. `agrees_with_core` replays sampled trains through the real
 `monitor.core.cycle.step` and compares every output: the Monte Carlo figures are only as
 good as that check, which `railguard verify` runs every time and tests/test_fastcore.py
@@ -22,13 +27,16 @@ import numpy as np
 from monitor.core import cycle
 from monitor.core.braking import CURVE_CAP_DM
 from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, gradient_accel_mms2
+from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
-    ABSENT, EMERGENCY, MAINTAIN, NO_DISTANCE, NORMAL, PRESENT, R_ENVELOPE, R_LATCH, R_SBI, R_TABLE, R_WARNING,
-    SERVICE, STATIC, Inputs, Report, Train,
+    ABSENT, EMERGENCY, MAINTAIN, MAX_COUNT, NO_DISTANCE, NO_TRACK, NORMAL, PRESENT, R_ENVELOPE, R_LATCH, R_MEMORY,
+    R_SBI, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
+    TRACK_PASSED, TRACK_SEEN, Inputs, Report, Train,
 )
 
 I64 = np.int64
-OUTPUT_KEYS = ("demand", "reasons", "distance_dm", "node", "observation", "warning")
+OUTPUT_KEYS = ("demand", "reasons", "distance_dm", "node", "observation", "warning", "track_dm", "track_cycles",
+               "track_state")
 INPUT_KEYS = ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake", "age_ms")
 
 
@@ -115,11 +123,12 @@ def _stop(speed_cms, bands: list) -> tuple[np.ndarray, np.ndarray]:
     return dist, time
 
 
-def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms) -> tuple[np.ndarray, np.ndarray]:
+def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms, ebi_normal=None) -> tuple[np.ndarray, np.ndarray]:
     """(alpha1, alpha2) of the table's zones as the core cuts them: alpha2 = EBI under normal
-    conditions, alpha1 = the service curve's EBI under normal conditions, at least alpha2."""
+    conditions (`ebi_normal` if given: the caller has it), alpha1 = the service curve's EBI
+    under normal conditions, at least alpha2."""
     zero = np.zeros_like(np.asarray(speed_cms, dtype=I64))
-    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms).ebi_dm
+    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms).ebi_dm if ebi_normal is None else ebi_normal
     alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True).ebi_dm
     return np.maximum(alpha1, alpha2), alpha2
 
@@ -138,14 +147,38 @@ def supervision(present, distance_dm, c: Curves, held) -> tuple[np.ndarray, np.n
     return demand, present & (distance_dm <= c.warning_dm)
 
 
-def latch(latched, calm, demand, speed_cms, revocable: bool, confirm: int):
-    """envelope.latch on arrays: (latched, calm, demand sent)."""
-    held = (latched | (demand == EMERGENCY)) & (speed_cms > 0)
-    calm = np.where(held & (demand != EMERGENCY), calm + 1, 0)
-    if revocable:
-        release = held & (calm >= confirm)
-        held, calm = held & ~release, np.where(release, 0, calm)
-    return held, calm, np.where(held, EMERGENCY, demand)
+def hold(level, calm, demand, speed_cms, revocable: bool, confirm: int):
+    """envelope.hold on arrays: (level, calm, demand sent). A demand below the level held is
+    held for `confirm` - 1 cycles and let through on the confirm-th (calm counts them); an
+    emergency held to standstill if not `revocable`; everything let through at standstill."""
+    lower = (speed_cms > 0) & (demand < level)
+    stuck = lower & (level == EMERGENCY) if not revocable else np.zeros_like(lower)
+    holding = lower & (stuck | (calm + 1 < confirm))
+    level = np.where(holding, level, demand)
+    return level, np.where(holding & ~stuck, calm + 1, 0), level
+
+
+def table_hold(level, demand, speed_cms, zone_free):
+    """envelope.table_hold on arrays: the table's demand, kept at `level` (what it sent last
+    cycle) while the train moves and the voted picture is in the table's zones."""
+    return np.where((demand >= level) | (speed_cms == 0) | zone_free, demand, level)
+
+
+def accel_run(accel_mms2: int, period_ms: int) -> int:
+    """memory.accel_run: a T^2 / 2 in 1e-5 m, rounded up."""
+    return -(-accel_mms2 * period_ms * period_ms // 20000)
+
+
+def near_travel(speed_cms, error_permille: int, accel_mms2: int, obstacle_cms, period_ms: int) -> np.ndarray:
+    """memory.near_travel on arrays: the most the gap to a remembered obstacle shrinks in a period (1e-5 m)."""
+    v_max = _ceil_div(speed_cms * (1000 + error_permille), 1000)
+    return v_max * period_ms + accel_run(accel_mms2, period_ms) + obstacle_cms * period_ms
+
+
+def far_travel(speed_cms, error_permille: int, accel_mms2: int, period_ms: int) -> np.ndarray:
+    """memory.far_travel on arrays: the least the train ran in the period (1e-5 m), at least 0."""
+    run = speed_cms * (1000 - error_permille) // 1000 * period_ms - accel_run(accel_mms2, period_ms)
+    return np.maximum(run, 0)
 
 
 class TablePolicy:
@@ -175,62 +208,130 @@ class VectorMonitor:
         self.cfg = setup.config
         self.policy = policy or TablePolicy(setup.action, setup.next, setup.table.start, n)
         self.applied = np.zeros(n, dtype=I64)
-        self.latched = np.zeros(n, dtype=bool)
+        self.held = np.zeros(n, dtype=I64)          # State.held: the demand level held
         self.calm = np.zeros(n, dtype=I64)
+        self.table_held = np.zeros(n, dtype=I64)    # State.table_held
+        # State.track_*: the remembered obstacle (1e-5 m, NO_TRACK: none)
+        self.near = np.full(n, NO_TRACK, dtype=I64)
+        self.far = np.full(n, NO_TRACK, dtype=I64)
+        self.track_closing = np.zeros(n, dtype=I64)
+        self.track_age = np.zeros(n, dtype=I64)
+        self.track_cycles = np.zeros(n, dtype=I64)
+        self.track_absent = np.zeros(n, dtype=I64)
         self.m2 = setup.model == "m2"
+
+    def _memory(self, present, dist, speed, toward, own, age) -> tuple:
+        """Step 4 of the cycle: the track after this cycle's picture. Every PRESENT picture is
+        confirmed (it creates or replaces the track); ABSENT with every channel fresh is
+        evidence that it is gone. (t_state, remembered, far): the TRACK_* state, whether the
+        track is supervised instead of a voted obstacle, and the far position judged this
+        cycle (before a forgotten or passed track is cleared)."""
+        cfg = self.cfg
+        lost = ~present & (self.near != NO_TRACK)
+        units = dist * UNITS_PER_DM
+        far = np.where(present, units, np.where(lost, self.far - far_travel(speed, cfg.speed_error_permille,
+                                                                              self.setup.track_accel, cfg.period_ms),
+                                                 self.far))
+        passed = lost & (far < 0)
+        evidence = lost & ~passed & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
+        count = self.track_absent + 1
+        forgotten = evidence & (count >= self.setup.forget_cycles)
+        gone = passed | forgotten
+        kept = lost & ~gone
+        t_state = np.select([present, passed, forgotten, evidence, lost],
+                            [TRACK_SEEN, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD], TRACK_NONE)
+        self.track_absent = np.where(evidence & ~forgotten, count, 0)
+        self.track_cycles = np.where(kept, np.minimum(self.track_cycles + 1, MAX_COUNT), 0)
+        self.near = np.where(present, units, np.where(gone, NO_TRACK, self.near))
+        self.far = np.where(gone, NO_TRACK, far)
+        self.track_closing = np.where(present, np.maximum(toward - own, 0), np.where(gone, 0, self.track_closing))
+        self.track_age = np.where(present, age, np.where(gone, 0, self.track_age))
+        return t_state, kept, far
 
     def step(self, present: np.ndarray, distance_dm: np.ndarray, speed_cms: np.ndarray,
              closing_cms: Optional[np.ndarray] = None, obstacle: Optional[np.ndarray] = None,
              track: Optional[np.ndarray] = None, brake: Optional[np.ndarray] = None,
              age_ms: Optional[np.ndarray] = None) -> dict:
         """One cycle for all trains. closing_cms None: the train's speed (a static obstacle);
-        obstacle, track, brake, age_ms None: 0. Returns the outputs (demand, reasons,
-        observation, node, distance_dm, warning) and the curves and zones used."""
+        obstacle, track, brake, age_ms None: 0. Returns the outputs (OUTPUT_KEYS), the policy's
+        own demand (`table`, before the table's hold; `table_demand` after it), the track's
+        `far` position judged this cycle (1e-5 m, what passing and the sensor range are judged
+        on; NO_TRACK without a track), and the curves and zones of the supervised obstacle
+        (the remembered one where no channel shows an obstacle)."""
         cfg = self.cfg
         present = np.asarray(present, dtype=bool)
         speed = np.asarray(speed_cms, dtype=I64)
         zeros = np.zeros(present.shape[0], dtype=I64)
         track = zeros if track is None else np.asarray(track, dtype=I64)
         brake = zeros if brake is None else np.asarray(brake, dtype=I64)
-        age = zeros if age_ms is None else np.where(present, age_ms, 0)
+        age = zeros if age_ms is None else np.where(present, age_ms, 0).astype(I64)
         dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
         toward = speed if closing_cms is None else np.where(present, closing_cms, speed).astype(I64)
-        c = curves(cfg, speed, track, brake, toward, age)
-        env, warn = supervision(present, dist, c, self.latched)
-        alpha1, alpha2 = zone_alphas(cfg, speed, toward, age)
-        zone = np.where(present, zone_of(dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
+        own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
+        t_state, remembered, far = self._memory(present, dist, speed, toward, own, age)
+        track_dm = np.where(self.near == NO_TRACK, NO_DISTANCE, self.near // UNITS_PER_DM)
+        # the supervised obstacle: the voted one, or the remembered one where no channel shows it
+        sup = present | remembered
+        sup_dist = np.where(remembered, track_dm, dist)
+        sup_toward = np.where(remembered, self.track_closing + own, toward)
+        sup_age = np.where(remembered, self.track_age, age)
+        c = curves(cfg, speed, track, brake, sup_toward, sup_age)
+        env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
+        normal = not (track.any() or brake.any())         # then EBI is alpha2 (cycle._table_zone)
+        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age, c.ebi_dm if normal else None)
+        sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
+        zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
         if self.m2:
             spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
             obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
             obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake
         else:
             obs = zone
-        table, node = self.policy.step(obs, self.applied)
+        action, node = self.policy.step(obs, self.applied)
+        table = table_hold(self.table_held, action, speed, zone == 0)     # the voted picture's zone
+        self.table_held = table
         demand = np.maximum(table, env)
-        was = self.latched
-        self.latched, self.calm, final = latch(was, self.calm, demand, speed,
-                                               cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
+        self.held, self.calm, final = hold(self.held, self.calm, demand, speed,
+                                           cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
         self.applied = final
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
-                   | np.where(env == SERVICE, R_SBI, 0) | np.where(self.latched & was & (demand != EMERGENCY), R_LATCH, 0)
-                   | np.where(warn, R_WARNING, 0))
-        return {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True), "distance_dm": dist,
-                "warning": warn, "table": table, "curves": c, "alpha1_dm": alpha1, "alpha2_dm": alpha2}
+                   | np.where(env == SERVICE, R_SBI, 0) | np.where(final > demand, R_LATCH, 0)
+                   | np.where(warn, R_WARNING, 0) | np.where(remembered, R_MEMORY, 0))
+        out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
+               "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
+               "track_state": t_state, "track_far": far, "table": action, "table_demand": table, "curves": c,
+               "alpha1_dm": alpha1, "alpha2_dm": alpha2}
+        # the remembered obstacle moved for the next period, worst case for the train
+        has = self.near != NO_TRACK
+        moved = self.near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.track_closing,
+                                        cfg.period_ms)
+        self.near = np.where(has, np.maximum(moved, 0), NO_TRACK)
+        return out
+
+
+# what twin_trace records besides the outputs (as `twin_<key>`): the policy's demand, the
+# table's after its hold, the track's far position; for the tests' coverage counts
+TWIN_EXTRAS = ("table", "table_demand", "track_far")
 
 
 def twin_trace(setup: cycle.Setup, inputs: dict) -> dict:
     """Run VectorMonitor over (steps, trains) input arrays (INPUT_KEYS; missing ones are
-    their defaults) and return the inputs with the outputs (OUTPUT_KEYS), all (steps, trains)."""
+    their defaults) and return the inputs with the outputs (`out_<key>`, OUTPUT_KEYS) and
+    TWIN_EXTRAS (`twin_<key>`), all (steps, trains)."""
     present = np.asarray(inputs["present"], dtype=bool)
     steps, n = present.shape
     vm = VectorMonitor(setup, n)
     trace = {k: np.asarray(v) for k, v in inputs.items() if v is not None}
     for key in OUTPUT_KEYS:
         trace["out_" + key] = np.zeros((steps, n), dtype=bool if key == "warning" else I64)
+    for key in TWIN_EXTRAS:
+        trace["twin_" + key] = np.zeros((steps, n), dtype=I64)
     for k in range(steps):
         out = vm.step(*(None if inputs.get(key) is None else np.asarray(inputs[key])[k] for key in INPUT_KEYS))
         for key in OUTPUT_KEYS:
             trace["out_" + key][k] = out[key]
+        for key in TWIN_EXTRAS:
+            trace["twin_" + key][k] = out[key]
     return trace
 
 

@@ -53,8 +53,8 @@ class Config(NamedTuple):
     recovery_cycles: int = 10          # error-free cycles before DEGRADED/SAFE_STOP clear
     max_overruns: int = 3              # consecutive deadline overruns leading to SAFE_STOP
     distance_tolerance_dm: int = 100   # 2oo2: two PRESENT distances further apart than this raise the flag
-    # --- obstacle memory (monitor/core/memory.py, docs/supervision.md section 6)
-    forget_ms: int = 5000              # fresh unanimous ABSENT this long forgets a remembered obstacle
+    # --- obstacle memory (monitor/core/memory.py, docs/supervision.md section 5)
+    forget_ms: int = 7500              # fresh unanimous ABSENT this long forgets a remembered obstacle (the trade-off: docs/supervision.md 5)
     sensor_range_dm: int = 4000        # the sensors' declared range: absence counts as evidence only inside it
 
     @property

@@ -24,7 +24,7 @@ from .types import (
     ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
     NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC,
-    TRACK_FORGOTTEN, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Outputs, State,
+    TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Outputs, State,
 )
 from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
 
@@ -168,10 +168,16 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     toward = speed if closing is None else closing
     near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, state.track_age_ms
     t_cycles, t_absent = 0, 0
+    confirmed = distance != NO_DISTANCE and sys_status == PRESENT and not sys_error
     if distance != NO_DISTANCE:
         near, far, t_closing, t_age = observe(near, far, t_closing, t_age, distance, toward - own_speed, age,
-                                              sys_status == PRESENT and not sys_error)
-        t_state = TRACK_NONE if near == NO_TRACK else TRACK_SEEN
+                                              confirmed)
+        if near == NO_TRACK:
+            t_state = TRACK_NONE
+        elif near == distance * UNITS_PER_DM:
+            t_state = TRACK_SEEN
+        else:                                       # a farther disputed sighting: the track was not seen
+            t_state, t_cycles = TRACK_HELD, _inc(state.track_cycles)
     elif near != NO_TRACK:
         far -= far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
         evidence = sys_status == ABSENT and not sys_error and not stale
@@ -185,24 +191,22 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         t_state = TRACK_NONE
     t_dm = distance_dm(near)
 
-    # 5. braking curves at the measured speed (docs/supervision.md) for the nearer of the voted
-    #    and the remembered obstacle, under the reported conditions; the table's zones under
-    #    normal ones; the observation reads the voted picture alone
+    # 5. braking curves at the measured speed (docs/supervision.md) for the voted obstacle and
+    #    for the remembered one (unless a confirmed picture just replaced it: then they are the
+    #    same), under the reported conditions; the higher demand counts. The table's zones under
+    #    normal conditions; the observation reads the voted picture alone
     if distance != NO_DISTANCE:
         curve = curves(cfg, speed, track, brake, toward, age)
         z = _table_zone(cfg, distance, speed, track or brake, toward, age, curve.ebi_dm)
-    else:
-        z = 3 if sys_status == DEGRADED else 0
-    remembered = t_dm < distance
-    if remembered:
-        curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
-        z_sup = _table_zone(cfg, t_dm, speed, track or brake, t_closing + own_speed, t_age, curve.ebi_dm)
-        env, warn = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
-    elif distance != NO_DISTANCE:
-        z_sup = z
         env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
     else:
-        z_sup, env, warn = 0, MAINTAIN, False
+        z = 3 if sys_status == DEGRADED else 0
+        env, warn = MAINTAIN, False
+    remembered = near != NO_TRACK and not confirmed
+    if remembered:
+        curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
+        env_t, warn_t = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
+        env, warn = combine(env, env_t, MAINTAIN), warn or warn_t
     if setup.model == "m1":
         obs = z
     else:
@@ -231,13 +235,14 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     # 6. table (held during any system error: it reads only pictures the voter confirms;
     #    the curves and the error rules answer meanwhile)
-    #    what the table raised is held while its obstacle, voted or remembered, is in its zones
+    #    what the table raised is held while the voted picture is in the table's zones (a
+    #    remembered obstacle is the curves' business: the table acts on what is seen)
     if mode == INIT:
         node = setup.table.start
         table_demand = MAINTAIN
     else:
         node = state.node if error and mode != SAFE_STOP else setup.next[state.node][obs]
-        table_demand = table_hold(state.table_held, setup.action[node], speed, z_sup == 0)
+        table_demand = table_hold(state.table_held, setup.action[node], speed, z == 0)
 
     # 7. demands, only ever upwards, then the hold (released only after `release_confirm_cycles`
     #    in which the causes, remembered obstacles included, ask for less); INIT brakes without

@@ -85,9 +85,11 @@ def hold(level: int, calm: int, demand: int, speed_cms: int, revocable: bool, co
 
 
 def table_hold(level: int, demand: int, speed_cms: int, zone_free: bool) -> int:
-    """The table's demand after its hold: what the table raised is lowered only once its
-    obstacle (voted or remembered) has left the table's zones, or at standstill, so that a
-    table whose belief wavers at low speed does not toggle the brake (issue 29 item 6).
+    """The table's demand after its hold: what the table raised is lowered only once the
+    voted picture has left the table's zones (`zone_free`: observed zone 0), or at
+    standstill, so that a table whose belief wavers at low speed does not toggle the brake
+    (issue 29 item 6). A remembered obstacle no channel shows is left to the curves: the
+    table acts on what is seen, and a one-cycle phantom does not hold its demand.
 
     pre: 0 <= level <= 2 and 0 <= demand <= 2 and speed_cms >= 0
     post: __return__ >= demand

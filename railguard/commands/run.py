@@ -40,7 +40,7 @@ def register(sub) -> None:
         "run",
         help="run the cyclic monitor on CAN (default: with the scenario player on the in-process bus)",
         description="Run the monitor: every period drain the bus, latch the newest valid report per channel, "
-                    "step the core, send BrakeDemand and MonitorStatus. With no bus options the monitor and the "
+                    "step the core, send BrakeDemand, MonitorStatus and MonitorTrack. With no bus options the monitor and the "
                     "built-in scenario player share python-can's in-process virtual bus on a simulated clock "
                     "(deterministic, as fast as the CPU allows). Writes a candump .log of the bus and a plot, "
                     "prints a summary. SIGINT/SIGTERM: a last emergency demand, the summary, exit 0. A run that "

@@ -3,7 +3,7 @@
 `MonitorRunner` runs on an in-memory python-can bus (`FrontDoorBus`) with the simulated
 clock; `Harness` puts one frame on it (or runs one cycle), lets the runner take it, and checks
 the accounting, the reject reason, the kind tally, the latched reports, the core's state and
-outputs and the two frames each cycle sends against the reference receiver. A fault stops
+outputs and the three frames each cycle sends against the reference receiver. A fault stops
 the stream (`StreamStop`).
 """
 from __future__ import annotations
@@ -21,11 +21,14 @@ from monitor import tables
 from monitor.core import cycle as core
 from monitor.core.config import Config
 from monitor.core.types import (
-    EMERGENCY, INIT, MAX_COUNT, NO_DISTANCE, R_INIT, R_LATCH, R_SAFE_STOP, R_SYSTEM_ERROR, SAFE_STOP, Inputs, Report,
-    Train,
+    EMERGENCY, INIT, MAX_COUNT, NO_DISTANCE, NO_TRACK, R_INIT, R_LATCH, R_MEMORY, R_SAFE_STOP, R_SYSTEM_ERROR,
+    SAFE_STOP, TRACK_CONFIRMING, TRACK_HELD, TRACK_SEEN, Inputs, Report, Train,
 )
 
-from .reference import ACCEPTED, BRAKE_DEMAND, FILTERED, MONITOR_STATUS, ReferenceReceiver, e2e_crc, unpack
+from .reference import (
+    ACCEPTED, BRAKE_DEMAND, FILTERED, LAYOUT, MONITOR_STATUS, MONITOR_TRACK, OUTPUTS, UNUSED, ReferenceReceiver,
+    e2e_crc, unpack,
+)
 from .stats import Stats, describe
 
 
@@ -42,6 +45,7 @@ class FrontDoorBus(can.BusABC):
         self.pending: deque = deque()
         self.sent = 0
         self.last_sent: dict = {}     # frame ID -> the newest frame the runner sent on it
+        self.sent_ids: list = []      # the IDs sent, in order (the harness clears it every cycle)
 
     def _recv_internal(self, timeout):
         return (self.pending.popleft() if self.pending else None), True
@@ -49,6 +53,7 @@ class FrontDoorBus(can.BusABC):
     def send(self, msg, timeout=None) -> None:
         self.sent += 1
         self.last_sent[msg.arbitration_id] = msg
+        self.sent_ids.append(msg.arbitration_id)
 
 
 @lru_cache(maxsize=None)
@@ -57,6 +62,10 @@ def setup_for(table: str, topology: str) -> core.Setup:
 
 
 _FALLBACK_REASONS = R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH
+_REASON_LIMIT = 1 + next(hi for name, *_, hi in LAYOUT[BRAKE_DEMAND] if name == "Reason")   # the DBC's, 16384
+_UNSEEN = (TRACK_HELD, TRACK_CONFIRMING)    # remembered while no channel shows it: its cycles unvoted count
+_TRACKED = (TRACK_SEEN, TRACK_HELD, TRACK_CONFIRMING)   # an obstacle remembered after the cycle
+_TRACK_AGE_MAX = 65535                      # MonitorTrack.TrackAge saturates at 6553.5 s (0.1 s raw)
 
 
 class Harness:
@@ -93,6 +102,7 @@ class Harness:
         self.cycles = 0
         self.failed = False
         self._checked: list = [None] * cfg.channels   # report objects already found in their domain
+        self._out_counters: dict = {}       # output ID -> the E2E alive counter of the last frame sent on it
 
     # ------------------------------------------------------------------ faults
     def _fault(self, kind: str, what: str, msg: Optional[can.Message] = None, **extra) -> None:
@@ -224,6 +234,7 @@ class Harness:
         before, overruns = runner.state, runner.overruns
         counts = (rx.accepted, sum(rx.rejected.values()), runner.frames_received, self.tally.filtered)
         sent0 = self.bus.sent
+        self.bus.sent_ids.clear()
         try:
             rec = runner.cycle()
         except Exception as exc:  # noqa: BLE001
@@ -264,8 +275,9 @@ class Harness:
         if rec.tick != tick:
             return f"record tick {rec.tick!r} for the cycle at {tick}"
         if (rec.demand, rec.reasons, rec.mode, rec.node, rec.distance_dm, rec.module_flags, rec.system_error,
-                rec.warning) != (out.demand, out.reasons, out.mode, out.node, out.distance_dm, out.module_flags,
-                                 out.system_error, out.warning):
+                rec.warning, rec.track_dm, rec.track_cycles, rec.track_state) != (
+                out.demand, out.reasons, out.mode, out.node, out.distance_dm, out.module_flags, out.system_error,
+                out.warning, out.track_dm, out.track_cycles, out.track_state):
             return "the record disagrees with runner.outputs"
         m = self.model
         fresh = m.train is not None and tick - m.train_tick <= self.setup.timeout_ticks
@@ -278,22 +290,41 @@ class Harness:
         return ""
 
     def _sent_problem(self, sent0: int, out, foreign: bool) -> str:
-        """The two frames the cycle sent, read with the reference's own CRC and unpacking."""
+        """The three frames the cycle sent, BrakeDemand, MonitorStatus and MonitorTrack in this
+        order, read with the reference's own CRC and unpacking: valid 8-byte E2E frames, each
+        alive counter one on from the last cycle's, the bits no signal uses 0 (MonitorTrack's
+        reserved 48-63 among them); BrakeDemand's level and reasons, MonitorStatus's mode and
+        ForeignOutput, and MonitorTrack's fields as the core's outputs give them (TrackAge: the
+        track's unvoted cycles times the period, to the nearest 0.1 s, saturating)."""
         bus = self.bus
-        if bus.sent != sent0 + 2:
-            return f"the cycle sent {bus.sent - sent0} frames, not BrakeDemand and MonitorStatus"
-        demand, status = bus.last_sent.get(BRAKE_DEMAND), bus.last_sent.get(MONITOR_STATUS)
-        if demand is None or status is None:
-            return "no BrakeDemand or no MonitorStatus sent"
-        for fid, m in ((BRAKE_DEMAND, demand), (MONITOR_STATUS, status)):
+        if bus.sent != sent0 + len(OUTPUTS) or bus.sent_ids != list(OUTPUTS):
+            return (f"the cycle sent {[f'0x{i:02X}' for i in bus.sent_ids]}, not BrakeDemand, MonitorStatus "
+                    f"and MonitorTrack")
+        values = {}
+        for fid in OUTPUTS:
+            m = bus.last_sent[fid]
             data = bytes(m.data)
             if m.is_extended_id or len(data) != 8 or e2e_crc(data, fid) != data[0]:
                 return f"sent frame 0x{fid:02X} {data.hex()} is not a valid 8-byte E2E frame"
-        d, st = unpack(BRAKE_DEMAND, bytes(demand.data)), unpack(MONITOR_STATUS, bytes(status.data))
-        if d["Level"] != out.demand or st["Mode"] != out.mode:
-            return f"sent Level {d['Level']} / Mode {st['Mode']} for demand {out.demand} / mode {out.mode}"
+            if int.from_bytes(data, "little") & UNUSED[fid]:
+                return f"sent frame 0x{fid:02X} {data.hex()} sets bits no signal uses"
+            values[fid] = v = unpack(fid, data)
+            last = self._out_counters.get(fid)
+            if last is not None and v["Counter"] != (last + 1) & 0xF:
+                return f"sent frame 0x{fid:02X} has alive counter {v['Counter']} after {last}"
+            self._out_counters[fid] = v["Counter"]
+        d, st, tr = values[BRAKE_DEMAND], values[MONITOR_STATUS], values[MONITOR_TRACK]
+        if d["Level"] != out.demand or d["Reason"] != out.reasons or st["Mode"] != out.mode:
+            return (f"sent Level {d['Level']} / Reason {d['Reason']} / Mode {st['Mode']} for demand {out.demand} / "
+                    f"reasons {out.reasons} / mode {out.mode}")
         if st["ForeignOutput"] != foreign:
             return f"sent ForeignOutput {st['ForeignOutput']}, reference {int(foreign)}"
+        age_ms = min(out.track_cycles * self.period, _TRACK_AGE_MAX * 100)    # to the nearest 0.1 s
+        memory = int(bool(out.reasons & R_MEMORY))
+        if (tr["TrackState"], tr["Memory"], tr["TrackDistance"]) != (out.track_state, memory, out.track_dm) \
+                or abs(tr["TrackAge"] * 100 - age_ms) > 50:
+            return (f"sent MonitorTrack {tr} for track state {out.track_state}, distance {out.track_dm}, "
+                    f"{out.track_cycles} cycles unvoted, reasons {out.reasons}")
         return ""
 
     def _core_problem(self, before, s, out) -> str:
@@ -301,8 +332,8 @@ class Harness:
             return f"mode {s.mode!r}"
         if not (type(s.node) is int and 0 <= s.node < self.n_nodes):
             return f"node {s.node!r} not < {self.n_nodes}"
-        if type(s.latched) is not bool:
-            return f"latched {s.latched!r}"
+        if not (type(s.held) is int and 0 <= s.held <= 2 and s.latched is (s.held == EMERGENCY)):
+            return f"held {s.held!r} (latched {s.latched!r})"
         if not (type(s.seen) is int and 0 <= s.seen <= self.all_seen and s.seen & before.seen == before.seen):
             return f"seen {s.seen!r} (before {before.seen!r})"
         if not (type(s.disagree) is tuple and len(s.disagree) == self.modules
@@ -317,7 +348,7 @@ class Harness:
             return f"error_cycles {s.error_cycles!r} after {before.error_cycles!r}"
         if not (type(out.demand) is int and 0 <= out.demand <= 2):
             return f"demand {out.demand!r}"
-        if not (type(out.reasons) is int and 0 <= out.reasons < 8192):
+        if not (type(out.reasons) is int and 0 <= out.reasons < _REASON_LIMIT):
             return f"reasons {out.reasons!r}"
         if not (type(out.distance_dm) is int and (0 <= out.distance_dm <= 60000 or out.distance_dm == NO_DISTANCE)):
             return f"distance {out.distance_dm!r}"
@@ -337,8 +368,36 @@ class Harness:
             return "INIT without emergency demand and the init reason"
         if s.mode == SAFE_STOP and not (out.demand == EMERGENCY and out.reasons & R_SAFE_STOP):
             return "SAFE_STOP without emergency demand and the safe_stop reason"
-        if s.latched and out.demand != EMERGENCY:
-            return "latched without emergency demand"
+        if out.demand < s.held:      # an emergency held demands emergency, a service held at least service
+            return f"demand {out.demand} below the level held {s.held}"
+        return self._track_problem(before, s, out)
+
+    def _track_problem(self, before, s, out) -> str:
+        """The obstacle memory: the track state 0..5; a distance (0..60000 dm) exactly when a
+        track is remembered (seen, held or confirming), in the outputs and the state alike; its
+        unvoted cycles counting up while held or confirming, 0 otherwise; the memory reason
+        whenever a remembered obstacle no channel shows is supervised (held, confirming), never
+        without a track, and beside a seen one only in a doubtful picture (a system error: a
+        confirmed picture replaces the track, whose curves are then the voted ones)."""
+        if not all(type(x) is int for x in (out.track_state, out.track_dm, out.track_cycles, s.track_near,
+                                            s.track_cycles)):
+            return f"track outputs {out.track_state!r}, {out.track_dm!r}, {out.track_cycles!r} not integers"
+        if not 0 <= out.track_state <= 5:
+            return f"track state {out.track_state}"
+        tracked = out.track_state in _TRACKED
+        if not (0 <= out.track_dm <= 60000 if tracked else out.track_dm == NO_DISTANCE):
+            return f"track distance {out.track_dm} in track state {out.track_state}"
+        if (s.track_near != NO_TRACK) is not tracked or s.track_near < NO_TRACK:
+            return f"state track_near {s.track_near} in track state {out.track_state}"
+        cycles = min(before.track_cycles + 1, MAX_COUNT) if out.track_state in _UNSEEN else 0
+        if out.track_cycles != cycles or s.track_cycles != cycles:
+            return (f"track cycles {out.track_cycles} (state {s.track_cycles}) in track state {out.track_state}, "
+                    f"{before.track_cycles} before")
+        memory = bool(out.reasons & R_MEMORY)
+        if (memory and not tracked) or (out.track_state in _UNSEEN and not memory) \
+                or (memory and out.track_state not in _UNSEEN and not out.system_error):
+            return (f"reason memory {memory} in track state {out.track_state} (system error {out.system_error}), "
+                    f"track {out.track_dm}, voted {out.distance_dm}")
         return ""
 
     def finish(self) -> None:

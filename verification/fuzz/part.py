@@ -74,8 +74,8 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
               f"{r['frames']:,} = {accepted:,} + {rej_total:,} + {r['filtered']:,}; "
               f"per-frame errors {r['accounting_errors']}",
               {"rejected": r["rejected"], "filtered": r["filtered"]}),
-        Check("fuzz: coverage (every reachable reject reason and filtered, every input accepted, both output IDs "
-              "foreign, every frame kind and bus state, ForeignOutput, every mode)",
+        Check("fuzz: coverage (every reachable reject reason and filtered, every input accepted, every output "
+              "ID foreign, every frame kind and bus state, ForeignOutput, every mode)",
               not missing,
               "complete" if not missing else
               f"missing reasons {missing_reasons}, IDs {missing_ids}, modes {missing_modes}, other {missing_other}",
@@ -118,12 +118,12 @@ _SECTION_TEXT = """\
 {target:,} frames ({mode} mode) went through the real receive path: `MonitorRunner.drain()` on an in-memory
 python-can bus with the simulated clock, and at every period boundary `MonitorRunner.cycle()`, which steps
 the core (`monitor.core.cycle.step`) with the latched reports, returns the cycle's record and sends
-BrakeDemand and MonitorStatus. The receive rules, in order, for each frame: (1) it is counted by kind
+BrakeDemand, MonitorStatus and MonitorTrack. The receive rules, in order, for each frame: (1) it is counted by kind
 (classical, 29-bit, FD, remote, error; an error frame also announces a bus state); (2) outside the receive
-filter (not an error frame, and 29-bit or an ID other than 0x010, 0x020-0x025, 0x030, 0x040) it is
+filter (not an error frame, and 29-bit or an ID other than 0x010, 0x020-0x025, 0x030, 0x040, 0x041) it is
 counted as filtered, not as a reject (live, it never reaches the process); (3) an FD, remote or error
 frame is refused (`fd_frame`, `remote_frame`, `error_frame`); (4) a frame on the monitor's own output IDs
-0x010 and 0x040 is foreign (`foreign_output`) and sets the ForeignOutput diagnostic in every cycle within
+0x010, 0x040 and 0x041 is foreign (`foreign_output`) and sets the ForeignOutput diagnostic in every cycle within
 one second (10 periods) of it; (5) the codec: on an input ID every frame counts for the rate policing
 before its length and CRC are looked at, and more than 3 frames within one period quarantine the ID for
 500 ms after its last excess frame (`rate_exceeded`, the channel's report withdrawn, its alive counter
@@ -136,7 +136,7 @@ of every DBC message (encoded by the codec; those on the output IDs are foreign)
 byte changes, truncation, extension up to 64 bytes, counter replay and jump, payload replacement, swapped
 IDs, 29-bit, remote, error and FD flags, CRC recomputed or not), fully random frames (11-bit, 29-bit and
 out-of-spec IDs, lengths 0..64), hostile frames (CAN FD with valid payloads, remote requests and controller
-error frames on the monitored IDs, frames on 0x010/0x040, 29-bit and unmonitored neighbours of the
+error frames on the monitored IDs, frames on 0x010/0x040/0x041, 29-bit and unmonitored neighbours of the
 monitored IDs), signals out of range with a valid CRC, babbling bursts (valid, with broken CRCs or lengths,
 or interleaved with FD/remote frames on the same ID), replays, and time steps, cycles and silences. Time
 moves as in the runner's loop with every cycle on time: frames arrive between two ticks, and the cycle at a
@@ -148,10 +148,14 @@ the kind tally by one, and frames received = accepted + rejected + filtered per 
 receiver written from the DBC and the rules above (its own classification, receive filter, CRC-8 and bit
 unpacking) predicts every frame's outcome and kind, the bus state, the latched reports and TrainState:
 the runner must agree. Every cycle's record agrees with the core's outputs and the reference (TrainState
-speed, ForeignOutput), and the frames it sent carry a valid CRC, the demand and the ForeignOutput bit.
+speed, ForeignOutput), and it sent BrakeDemand, MonitorStatus and MonitorTrack in this order, each with a
+valid CRC, its alive counter one on and its unused bits 0, carrying the demand and reasons, the mode and
+the ForeignOutput bit, and the remembered obstacle (state, memory bit, distance, age) as the core gives it.
 Latched reports stay in their domain (status 0..2, distance 0..60000 dm, closing -15000..15000 cm/s,
-obstacle 0..2, tick <= now), and so do the core's state (mode, node < table nodes, counters) and outputs
-(demand 0..2, reasons < 8192, distance 0..60000 or 65535), with emergency in INIT, SAFE_STOP and while
-latched. A stream stops at its first fault.
+obstacle 0..2, tick <= now), and so do the core's state (mode, node < table nodes, held demand level 0..2,
+counters) and outputs (demand 0..2, reasons < 16384, distance 0..60000 or 65535), with emergency in INIT and
+SAFE_STOP and the demand never below the level held; the obstacle memory is consistent (track state 0..5, a
+distance 0..60000 exactly while a track is remembered, its unvoted cycles counting up while held, the
+memory reason exactly when the remembered obstacle is the nearer). A stream stops at its first fault.
 
 """

@@ -1,9 +1,11 @@
 """The receive path's rules, read a second time: the oracle the fuzzing judges the runner by.
 
 The DBC's IDs and signal layouts in raw units, the receive filter and output IDs, the E2E
-CRC-8 (0x2F), bit unpacking, the frame kinds and the bus state an error frame announces, and
-`ReferenceReceiver`, which predicts each frame's outcome from them. It shares no code with
-can_bus on purpose: a verdict is only worth as much as this independent reading (issue 13).
+CRC-8 (0x2F), bit unpacking, the frame kinds and the bus state an error frame announces, the
+rate policing's figures (docs/can.md), and `ReferenceReceiver`, which predicts each frame's
+outcome from them. It shares no code with can_bus on purpose, not even a constant: a verdict
+is only worth as much as this independent reading (issue 13); tests/test_fuzz.py compares
+the two readings.
 """
 from __future__ import annotations
 
@@ -12,7 +14,6 @@ from typing import Optional
 
 import can
 
-from can_bus import codec
 from monitor.core.types import Report, Train
 
 
@@ -27,6 +28,7 @@ BRAKE_DEMAND = 0x10
 OBSTACLES = tuple(range(0x20, 0x26))
 TRAIN_STATE = 0x30
 MONITOR_STATUS = 0x40
+MONITOR_TRACK = 0x41
 INPUTS = frozenset(OBSTACLES) | {TRAIN_STATE}
 _E2E = (("Crc", 0, 8, False, 0, 255), ("Counter", 8, 4, False, 0, 15))
 _OBSTACLE = _E2E + (("Status", 12, 2, False, 0, 2), ("ObstacleType", 14, 2, False, 0, 2),
@@ -34,8 +36,8 @@ _OBSTACLE = _E2E + (("Status", 12, 2, False, 0, 2), ("ObstacleType", 14, 2, Fals
                     ("ClosingSpeed", 32, 16, True, -15000, 15000),  # [-150|150] m/s at 0.01 m/s
                     ("Module", 48, 2, False, 0, 2), ("Channel", 50, 1, False, 0, 1))
 LAYOUT = {
-    BRAKE_DEMAND: _E2E + (("Level", 12, 2, False, 0, 2), ("Warning", 14, 1, False, 0, 1), ("Reason", 16, 16, False, 0, 8191),
-                          ("Cycle", 32, 32, False, 0, 2**32 - 1)),
+    BRAKE_DEMAND: _E2E + (("Level", 12, 2, False, 0, 2), ("Warning", 14, 1, False, 0, 1),
+                          ("Reason", 16, 16, False, 0, 16383), ("Cycle", 32, 32, False, 0, 2**32 - 1)),
     **{fid: _OBSTACLE for fid in OBSTACLES},
     TRAIN_STATE: _E2E + (("TrackCondition", 12, 1, False, 0, 1), ("BrakeStatus", 13, 1, False, 0, 1),
                          ("Speed", 16, 16, False, 0, 12000)),    # [0|120] m/s at 0.01 m/s
@@ -43,7 +45,13 @@ LAYOUT = {
                             ("ForeignOutput", 15, 1, False, 0, 1), ("Node", 16, 10, False, 0, 1023),
                             ("ErrorFlags", 26, 6, False, 0, 63), ("VotedDistance", 32, 16, False, 0, 65535),
                             ("TableHash", 48, 12, False, 0, 4095), ("DeadlineMisses", 60, 4, False, 0, 15)),
+    MONITOR_TRACK: _E2E + (("TrackState", 12, 3, False, 0, 5), ("Memory", 15, 1, False, 0, 1),
+                           ("TrackDistance", 16, 16, False, 0, 65535),   # [0|6553.5] m at 0.1 m, 65535 no_track
+                           ("TrackAge", 32, 16, False, 0, 65535)),       # [0|6553.5] s at 0.1 s
 }
+# The bits no signal of a message uses: the monitor sends them 0 (MonitorTrack's comment: bits 48-63 reserved, 0).
+UNUSED = {fid: ~sum(((1 << length) - 1) << start for _, start, length, *_ in sig) & (2**64 - 1)
+          for fid, sig in LAYOUT.items()}
 DBC_IDS = tuple(sorted(LAYOUT))
 
 # ----------------------------------------------------------------------------- the rules, read independently
@@ -51,9 +59,13 @@ DBC_IDS = tuple(sorted(LAYOUT))
 # output IDs (live, never received from itself: any frame there is foreign), and the
 # ForeignOutput hold: set in every cycle within FOREIGN_HOLD_CYCLES periods of the last
 # foreign frame ("within the last second", the DBC's comment on MonitorStatus.ForeignOutput).
-MONITORED = frozenset((BRAKE_DEMAND, *OBSTACLES, TRAIN_STATE, MONITOR_STATUS))
-OUTPUTS = (BRAKE_DEMAND, MONITOR_STATUS)
+MONITORED = frozenset((BRAKE_DEMAND, *OBSTACLES, TRAIN_STATE, MONITOR_STATUS, MONITOR_TRACK))
+OUTPUTS = (BRAKE_DEMAND, MONITOR_STATUS, MONITOR_TRACK)    # sent every cycle, in this order
 FOREIGN_HOLD_CYCLES = 10
+# The rate policing (docs/can.md, "an input sender with more than 3 frames within one period:
+# quarantined 0.5 s, its channel withdrawn").
+MAX_FRAMES_PER_WINDOW = 3
+BABBLE_QUARANTINE_MS = 500
 KINDS = ("classical", "extended", "fd", "remote", "error")
 SHELL_REASON = {"fd": "fd_frame", "remote": "remote_frame", "error": "error_frame"}
 # linux/can/error.h: error class in the identifier, controller status in data[1]
@@ -138,10 +150,10 @@ class ReferenceReceiver:
     of the codec and the runner. In order, for each frame:
 
     1. its kind: error, remote, FD, 29-bit or classical (error frames also announce a bus state);
-    2. not an error frame and 29-bit, or an ID outside 0x010, 0x020-0x025, 0x030, 0x040 ->
+    2. not an error frame and 29-bit, or an ID outside 0x010, 0x020-0x025, 0x030, 0x040, 0x041 ->
        `filtered` (the receive filter drops it: not a reject);
     3. an error, remote or FD frame -> error_frame, remote_frame, fd_frame;
-    4. on the output IDs 0x010 or 0x040 -> foreign_output; ForeignOutput is set in every cycle
+    4. on the output IDs 0x010, 0x040 or 0x041 -> foreign_output; ForeignOutput is set in every cycle
        within FOREIGN_HOLD_CYCLES periods of it;
     5. an ID not in the DBC -> unknown_id; on an input ID (obstacle channels, TrainState) every
        frame counts for the rate, valid or not, before length and CRC: more than
@@ -195,8 +207,8 @@ class ReferenceReceiver:
             times = [t for t in self.times.get(fid, ()) if now - t < self.window]
             times.append(now)
             self.times[fid] = times
-            if len(times) > codec.MAX_FRAMES_PER_WINDOW:
-                self.quarantine_until[fid] = now + codec.BABBLE_QUARANTINE_MS
+            if len(times) > MAX_FRAMES_PER_WINDOW:
+                self.quarantine_until[fid] = now + BABBLE_QUARANTINE_MS
             if now < self.quarantine_until.get(fid, now):
                 ch = fid - OBSTACLES[0]
                 if fid in OBSTACLES and ch < self.channels:

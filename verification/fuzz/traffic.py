@@ -16,8 +16,8 @@ from can_bus import codec
 
 from .harness import Harness, StreamStop
 from .reference import (
-    BRAKE_DEMAND, CAN_ERR_FLAG, DBC_IDS, ERR_BUSOFF, ERR_CRTL, ERR_RESTARTED, MONITORED, OBSTACLES, OUTPUTS,
-    TRAIN_STATE,
+    BRAKE_DEMAND, CAN_ERR_FLAG, DBC_IDS, ERR_BUSOFF, ERR_CRTL, ERR_RESTARTED, MONITOR_TRACK, MONITORED, OBSTACLES,
+    OUTPUTS, TRAIN_STATE,
 )
 
 
@@ -95,7 +95,7 @@ OP_TABLES = {name: _op_table(w) for name, w in PROFILES.items()}
 SPEEDS = (0, 0, 300, 1500, 4000, 8000, 12000)
 FD_LENGTHS = (12, 16, 20, 24, 32, 48, 64)
 MONITORED_IDS = tuple(sorted(MONITORED))
-UNMONITORED_NEIGHBOURS = (0x000, 0x00F, 0x011, 0x01F, 0x026, 0x02F, 0x031, 0x03F, 0x041, 0x410, 0x420, 0x7FF)
+UNMONITORED_NEIGHBOURS = (0x000, 0x00F, 0x011, 0x01F, 0x026, 0x02F, 0x031, 0x03F, 0x042, 0x410, 0x420, 0x7FF)
 ERROR_CLASSES = (ERR_CRTL, ERR_CRTL, ERR_CRTL, ERR_BUSOFF, ERR_RESTARTED, ERR_CRTL | ERR_RESTARTED,
                  0x001, 0x002, 0x008, 0x010, 0x020, 0x080, 0x200)     # the rest: TX timeout, arbitration, ...
 CTRL_BYTES = (0x04, 0x08, 0x10, 0x20, 0x40, 0x14, 0x00, 0x01, 0x02)
@@ -153,7 +153,11 @@ class Traffic:
             b = t.u8()
             return {"Speed": self.pick(0, 12000), "TrackCondition": b & 1, "BrakeStatus": (b >> 1) & 1}
         if frame_id == BRAKE_DEMAND:
-            return {"Level": t.u8() % 3, "Warning": t.u8() % 2, "Reason": self.pick(0, 8191), "Cycle": t.u32()}
+            return {"Level": t.u8() % 3, "Warning": t.u8() % 2, "Reason": self.pick(0, 16383), "Cycle": t.u32()}
+        if frame_id == MONITOR_TRACK:
+            b = t.u8()
+            return {"TrackState": b % 6, "Memory": (b >> 3) & 1, "TrackDistance": self.pick(0, 65535),
+                    "TrackAge": t.u16()}
         return {"Mode": t.u8() & 3, "Node": t.u16() & 1023, "ErrorFlags": t.u8() & 63, "VotedDistance": t.u16(),
                 "TableHash": t.u16() & 4095, "DeadlineMisses": t.u8() & 15}
 
@@ -273,7 +277,7 @@ class Traffic:
             if b & 1:
                 sig["Level"] = 3
             else:
-                sig["Reason"] = 1024 + t.u16() % 64512
+                sig["Reason"] = 16384 + t.u16() % 49152
         self.send(fid, self.valid(fid, sig), "out_of_range")
 
     def op_burst(self) -> None:
@@ -325,7 +329,7 @@ class Traffic:
             self.send(cls | (CAN_ERR_FLAG if b & 0x20 else 0), bytes(data), "error", error=True,
                       extended=True)
         elif what in (4, 5):                           # on the monitor's own output IDs
-            out = OUTPUTS[(b >> 7) & 1]
+            out = OUTPUTS[(b >> 3) % len(OUTPUTS)]
             if b & 0x40:
                 data = self.valid(out, self.signals(out))
             else:

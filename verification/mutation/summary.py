@@ -9,8 +9,11 @@ from typing import Optional
 from .mutant import Mutant
 
 
-def summarize(mutants: list[Mutant], equivalents: dict[str, str], seconds: float, extra: Optional[dict] = None) -> dict:
-    ids = {m.id for m in mutants}
+def summarize(mutants: list[Mutant], equivalents: dict[str, str], seconds: float, extra: Optional[dict] = None,
+              known: Optional[set] = None) -> dict:
+    """`known`: every mutant id of the files run (default: those of `mutants`), so that a run
+    of part of a file (--scope, --only) does not call the rest of its listed equivalents stale."""
+    ids = {m.id for m in mutants} if known is None else known
     for m in mutants:
         m.equivalent = m.id in equivalents
     stillborn = [m for m in mutants if m.status == "stillborn"]      # C: does not compile cleanly

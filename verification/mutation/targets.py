@@ -11,11 +11,12 @@ from typing import Callable
 ROOT = Path(__file__).resolve().parents[2]             # the repository: mutant ids are paths relative to it
 CORE = ROOT / "monitor" / "core"
 EQUIVALENTS = ROOT / "verification" / "mutation_equivalents.toml"
-PY_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py", "cycle.py", "braking.py", "config.py",
-            "table.py", "types.py")
+PY_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py", "memory.py", "cycle.py", "braking.py",
+            "config.py", "table.py", "types.py")
 # the tests run against every Python mutant, fastest killers first (-x stops at the first failure)
-PY_TESTS = ("tests/test_core_mutants.py", "tests/test_core_cycle.py", "tests/test_supervision.py",
-            "tests/test_core_tables.py", "tests/test_table.py", "tests/test_core_stateful.py")
+PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests/test_core_memory.py",
+            "tests/test_core_cycle.py", "tests/test_supervision.py", "tests/test_core_tables.py", "tests/test_table.py",
+            "tests/test_core_stateful.py")
 JOBS = 2
 C_DIR = ROOT / "fmu" / "c"
 C_FILES = ("fmu/c/core/rg_core.c",)
@@ -26,12 +27,15 @@ C_SEQUENCES = 1000
 # the C mutants are judged by the Python-vs-C comparison alone
 C_TESTS = ("tests/test_fmu_equivalence.py",)
 # the functions of rg_core.c that are mutated: freshness and range, the voters, the zones,
-# the supervision ladder, combine, the latch and the speed class (the decisions the
-# Python-vs-C comparison must pin; the curve arithmetic, rg_step's plumbing, the
-# configuration and table checks and SHA-256 are not mutated yet)
+# the supervision ladder, combine, the hold (the latch's successor), the table's hold, the
+# supervision of voted and remembered obstacle and the decision (issue 29), the obstacle
+# memory (prediction, observation, forgetting, the remembered distance) and the speed class
+# (the decisions the Python-vs-C comparison must pin; the curve arithmetic, rg_step's
+# plumbing, the configuration and table checks and SHA-256 are not mutated yet)
 C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
-               "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_latch",
-               "speed_class")
+               "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_hold",
+               "rg_table_hold", "rg_supervised_demand", "rg_decide", "rg_accel_run", "rg_near_travel",
+               "rg_far_travel", "rg_observe", "rg_forget", "rg_track_dm", "speed_class")
 
 Progress = Callable[[str], None]
 

@@ -40,7 +40,8 @@ def section_markdown(runs, agree, s, where, ps, pwhere, figs, quick) -> str:
         "The first trains of the shipped, paper-zones and both phantom runs were replayed cycle by cycle through the "
         "real `monitor.core.cycle.step` ("
         + ", ".join(f"{key} {agree[key][2]} trains, {agree[key][1]:,} cycles" for key in agree)
-        + "): demand, reason bits, warning, voted distance, observation and table node agree in every cycle "
+        + "): demand, reason bits, warning, voted distance, observation, table node and the remembered obstacle "
+        "(distance, cycles since seen, state) agree in every cycle "
         f"({'yes' if all(a[0] for a in agree.values()) else '**NO**'}), and the episode plotted below is one of those "
         "trains.\n")
     out.append("### The simulated world, and what we had to choose\n")

@@ -86,7 +86,8 @@ PHANTOMS = Scenario("shipped_phantoms", "shipped Config (emergency revocable) wi
 PHANTOMS_HELD = Scenario("phantoms_held", "the same with emergency_release = 0 (an emergency held to standstill)",
                          config=Config(emergency_release=0), phantom=0.02, miss=0.02)
 
-TRACE_KEYS = ("present", "distance_dm", "speed_cms", "demand", "observation", "node", "reasons", "warning")
+TRACE_KEYS = ("present", "distance_dm", "speed_cms", "demand", "observation", "node", "reasons", "warning", "track_dm",
+              "track_cycles", "track_state")
 EPISODE_KEYS = ("has", "true_m", "zone", "speed_mps", "reasons", "phantom")
 
 
@@ -264,7 +265,8 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
 
         if rec:
             for key, val in (("present", present), ("distance_dm", dist_dm), ("speed_cms", v_cms), ("demand", demand),
-                             ("observation", obs), ("node", out["node"]), ("reasons", reasons), ("warning", out["warning"])):
+                             ("observation", obs), ("node", out["node"]), ("reasons", reasons), ("warning", out["warning"]),
+                             *((key, out[key]) for key in ("track_dm", "track_cycles", "track_state"))):
                 trace[key][k] = val[:rec]
             for key, val in (("has", has), ("true_m", d), ("zone", zone_true), ("speed_mps", v),
                              ("reasons", reasons), ("phantom", phantom)):

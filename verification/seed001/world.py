@@ -168,7 +168,7 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None, tabl
     cols = np.unique(np.linspace(0, max(nb, min(n, s.record)) - 1, min(s.record, n)).round().astype(int))
     trace = {k: np.zeros((s.steps, cols.size), dtype=np.int64) for k in
              ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake",
-              "demand", "observation", "node", "reasons", "warning")}
+              "demand", "observation", "node", "reasons", "warning", "track_dm", "track_cycles", "track_state")}
     sample = {k: np.zeros((s.steps, cols.size)) for k in
               ("true_risk", "belief_risk", "picture_risk", "speed_mps", "distance_m", "present", "demand")}
 
@@ -266,7 +266,8 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None, tabl
         for key, arr in (("present", present), ("distance_dm", rep_dist), ("speed_cms", speed_cms),
                          ("closing_cms", rep_closing), ("obstacle", p_kind), ("track", p_track),
                          ("brake", p_brake), ("demand", demand), ("observation", obs), ("node", node),
-                         ("reasons", out["reasons"]), ("warning", out["warning"])):
+                         ("reasons", out["reasons"]), ("warning", out["warning"]),
+                         *((key, out[key]) for key in ("track_dm", "track_cycles", "track_state"))):
             trace[key][k] = arr[cols]
         for key, arr in (("true_risk", true_risk), ("belief_risk", belief_risk), ("picture_risk", picture_risk),
                          ("speed_mps", v), ("distance_m", np.where(present, dist, np.nan)), ("present", present),

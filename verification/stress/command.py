@@ -64,8 +64,9 @@ def render(result: dict) -> str:
                      + (f"; replay of {f['candump']}: {'reproduces it' if f.get('replay_reproduces') else 'DIFFERS'}"
                         if "candump" in f else ""))
     lines.append(f"  P(collision per encounter): importance sampling {rare['p_importance_sampling']:.3g} "
-                 f"(95 % {rare['ci95'][0]:.3g}..{rare['ci95'][1]:.3g}, effective sample size "
-                 f"{rare['effective_sample_size']:.0f} of {rare['samples']}); naive Monte Carlo "
+                 f"(95 % {rare['ci95'][0]:.3g}..{rare['ci95'][1]:.3g}; {rare['failures_in_is_samples']} of "
+                 f"{rare['samples']} samples fail, worth {rare['effective_failures']:.1f} equally weighted failures); "
+                 f"naive Monte Carlo "
                  f"{rare['naive']['failures']} of {rare['samples']} = {rare['naive']['p']:.3g} "
                  f"(95 % upper {rare['naive']['ci95_upper']:.3g})")
     return "\n".join(lines) + "\n"

@@ -15,7 +15,7 @@ from monitor.core.config import Config
 from .. import world_train
 from ..report import Progress
 from ..scale import Cluster
-from .disturbances import NOMINAL, Disturbance, Proposal, log_weight
+from .disturbances import KINDS, NOMINAL, WINDOW, Disturbance, Proposal, log_weight
 from .encounters import Encounter
 from .importance import rare_events
 from .loop import closed_loop, evaluate_all
@@ -33,27 +33,31 @@ class Budget:
 QUICK = Budget(samples=100, iterations=6, is_samples=400)
 
 
-def _refit(proposal: Proposal, elites: list[Disturbance], weights: np.ndarray, smoothing: float) -> Proposal:
-    """The blindness chain refitted to the elites (weighted); every other event keeps its
+def _refit(proposal: Proposal, elites: list[Disturbance], cycles: np.ndarray, weights: np.ndarray,
+           smoothing: float) -> Proposal:
+    """The blindness chain refitted to the elites (weighted) over the `cycles` of the window
+    each read (a cycle no elite read keeps its probabilities); every other event keeps its
     nominal rate: each hides the obstacle from one channel only, which the 2oo2 and 3oo3
-    voting answers (six independent misses in one cycle: 1e-8), and adapting 720 more
+    voting answers (six independent misses in one cycle: 1e-8), and adapting thousands more
     parameters would only spread the importance weights."""
     w = weights / weights.sum()
 
     def blend(est, old, lo=1e-4, hi=0.98):
         return np.clip(smoothing * est + (1 - smoothing) * old, lo, hi)
 
-    p = dict(proposal.p)
-    blind = np.stack([e.blind for e in elites]).astype(float)           # (E, WINDOW)
+    seen = (np.arange(WINDOW)[None, :] < np.asarray(cycles)[:, None]).astype(float)     # (E, WINDOW)
+
+    def fit(event: np.ndarray, given: np.ndarray, old: np.ndarray) -> np.ndarray:
+        """P(event | given) per cycle over the cycles the elites read, blended into `old`."""
+        n = w @ (given * seen)
+        return np.where(n > 0, blend((w @ (event * given * seen)) / np.maximum(n, 1e-300), old), old)
+
+    blind = np.stack([e.blind for e in elites]).astype(float)
     prev = np.concatenate([np.zeros((len(elites), 1)), blind[:, :-1]], axis=1)
-    begins = (w @ (blind * (1 - prev))) / np.maximum(w @ (1 - prev), 1e-12)
-    goes_on = (w @ (blind * prev)) / np.maximum(w @ prev, 1e-12)
-    seen_prev = (w @ prev) > 0
-    p["blind"] = blend(begins, proposal.p["blind"])
-    stays = np.where(seen_prev, blend(goes_on, proposal.stays), proposal.stays)
+    p = {**proposal.p, "blind": fit(blind, 1 - prev, proposal.p["blind"])}
     # the noise keeps its nominal spread and mean: it moves the voted distance by a few
     # sigmas (1 to 2 m) against margins of metres
-    return Proposal(p, proposal.mu, stays)
+    return Proposal(p, proposal.mu, fit(blind, prev, proposal.stays))
 
 
 def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin_m: float,
@@ -69,10 +73,12 @@ def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin
         return r["failure"] and (r["released"] or not released)
 
     best = d.copy()
-    quiet = best.copy()
-    quiet.z[:] = 0.0
-    if fails(quiet):                   # most failures do not need the noise at all
-        best = quiet
+    for kinds in (("z",), KINDS[1:]):  # most failures need neither the noise nor any one channel's events
+        quiet = best.copy()
+        for kind in kinds:
+            getattr(quiet, kind)[:] = 0
+        if fails(quiet):
+            best = quiet
     changed = True
     while changed:
         changed = False
@@ -125,20 +131,24 @@ def search(model: str, enc: Encounter, *, world=None, cfg: Config = Config(), bu
     n_elite = max(2, int(budget.elite * budget.samples))
     for it, ss in enumerate(root.spawn(budget.iterations)):
         rng = np.random.default_rng(ss)
-        ds = [proposal.sample(rng) for _ in range(budget.samples)]
+        ds = proposal.sample(rng, budget.samples)
         res = evaluate_all(model, enc, ds, world, cfg, margin_m, cluster)
         sims += len(ds)
+        read = [d.cut(r["cycles"]) for d, r in zip(ds, res)]     # what came after a run's end decided nothing
         fail = [i for i, r in enumerate(res) if r["failure"]]
-        failures += [(ds[i].log_likelihood(), res[i]["released"], ds[i]) for i in fail]
-        order = sorted(range(len(ds)), key=lambda i: (0, -ds[i].log_likelihood()) if res[i]["failure"]
+        failures += [(read[i].log_likelihood(), res[i]["released"], read[i]) for i in fail]
+        # failures first, the likeliest first (by their events: the noise, some 0.5 nats per
+        # channel and cycle, would rank them at random), then the runs that came closest
+        order = sorted(range(len(ds)), key=lambda i: (0, -read[i].events_log_likelihood()) if res[i]["failure"]
                        else (1, res[i]["closest_m"]))
-        elites = [ds[i] for i in order[:n_elite]]
+        top = order[:n_elite]
+        cycles = np.array([res[i]["cycles"] for i in top])
         if len(fail) >= n_elite:        # the failure level is reached: weight elites towards the likeliest
-            lw = np.array([log_weight(e, proposal) for e in elites])
+            lw = np.array([log_weight(ds[i], proposal, c) for i, c in zip(top, cycles)])
             weights = np.exp(lw - lw.max())
         else:
-            weights = np.ones(len(elites))
-        proposal = _refit(proposal, elites, weights, budget.smoothing)
+            weights = np.ones(len(top))
+        proposal = _refit(proposal, [ds[i] for i in top], cycles, weights, budget.smoothing)
         best = max((f[0] for f in failures), default=None)
         history.append({"iteration": it, "failures": len(fail), "closest_m": min(r["closest_m"] for r in res),
                         "best_log_likelihood": best})

@@ -2,6 +2,28 @@
 appearance (a common-cause blindness, misses, lost frames, ghosts, distance noise), its
 nominal probabilities, a disturbance sequence, and the proposal densities the search draws
 from (the nominal one among them), with the likelihoods that rank failures and weight samples.
+
+The window covers the encounter until standstill. The slowest encounter (edge-40: 40 m/s on
+the declaration's worst corner, 2.2 m/s^2 less a 20 per mille down gradient, 0.5 to 1 s of
+dead time) stands still about 225 to 235 cycles after the appearance when nothing disturbs
+it, so a window of 300 cycles (30 s) lets a disturbance strike at any moment of any
+encounter's braking, a few seconds of later braking included (tests/test_stress.py checks
+that every encounter's undisturbed run ends within it). After the window the channels
+report what they see.
+
+Calibration of the misses to seed 002 (a channel misses with p_n = P_MISS) and a beta factor
+BETA (the common-cause share of those misses, IEC 61508-6 annex D):
+- the common-cause blindness (every channel at once) is a two-state Markov chain over the
+  cycles: it begins with p_s in a cycle after a clear one and goes on with s = BLIND_STAYS
+  (0.9: it lasts 1 / (1 - s) = 10 cycles, 1 s, on average). Its stationary share is
+  p_s / (p_s + 1 - s); that share is the common-cause part of a channel's miss probability,
+  P_BLIND = BETA * P_MISS = 0.002, so p_s = P_BLIND (1 - s) / (1 - P_BLIND) = 2.004e-4;
+- a channel misses on its own, independently, with p_ind where the blindness leaves it
+  seeing: P_BLIND + (1 - P_BLIND) p_ind = P_MISS, so p_ind = (P_MISS - P_BLIND) / (1 - P_BLIND)
+  = 0.038076; every channel then misses P_MISS = 0.04 of the cycles, 5 % of it in common.
+The chain starts in its stationary distribution (blind at the appearance with P_BLIND, the
+weather does not wait for the obstacle), so every cycle of the window is blind with P_BLIND
+and every channel misses with P_MISS (tests/test_stress.py samples it).
 """
 from __future__ import annotations
 
@@ -12,13 +34,16 @@ import numpy as np
 from .encounters import CHANNELS, NOISE_SIGMA_M
 
 
-WINDOW = 100              # cycles from the appearance on in which disturbances are searched (10 s)
+WINDOW = 300              # cycles from the appearance on in which disturbances are searched (30 s: to standstill)
 P_MISS = 0.04             # seed 002: p_n, a channel's probability of a false negative
 BETA = 0.05               # common-cause share of misses (IEC 61508-6 annex D's beta: 1 % to 10 %)
 BLIND_STAYS = 0.9         # a common-cause blindness (glare, spray) goes on to the next cycle: 1 s on average
-# nominal probability per cycle: `blind` (all six channels at once, a common cause) begins,
-# and then lasts with BLIND_STAYS; the others per channel, independent
-DISTURBANCES = {"blind": BETA * P_MISS, "miss": (1 - BETA) * P_MISS, "drop": 0.001, "ghost": 0.001}
+P_BLIND = BETA * P_MISS   # stationary share of the cycles in which every channel is blind
+# nominal probability per cycle: `blind` (all six channels at once, a common cause) begins
+# (after a clear cycle; the chain's stationary share is then P_BLIND), and then lasts with
+# BLIND_STAYS; the others per channel, independent (a `miss` brings a channel's misses to P_MISS)
+DISTURBANCES = {"blind": P_BLIND * (1 - BLIND_STAYS) / (1 - P_BLIND), "miss": (P_MISS - P_BLIND) / (1 - P_BLIND),
+                "drop": 0.001, "ghost": 0.001}
 EXPLORE = 0.05            # the search's first proposal: a common-cause blindness begins this likely
 
 
@@ -42,6 +67,14 @@ class Disturbance:
 
     def copy(self) -> "Disturbance":
         return Disturbance(*(getattr(self, k).copy() for k in KINDS), self.z.copy())
+
+    def cut(self, cycles: int) -> "Disturbance":
+        """Undisturbed from cycle `cycles` on (a run that read only `cycles` cycles of the
+        window: what came after them decided nothing)."""
+        out = self.copy()
+        for k in (*KINDS, "z"):
+            getattr(out, k)[cycles:] = 0
+        return out
 
     def count(self) -> int:
         return int(sum(getattr(self, k).sum() for k in KINDS))
@@ -76,7 +109,12 @@ class Disturbance:
 
     @staticmethod
     def from_lists(data: dict) -> "Disturbance":
-        return Disturbance(*(np.array(data[k], dtype=bool) for k in KINDS), np.array(data["z"], dtype=float))
+        """From `as_lists`; a sequence shorter than WINDOW (written with a shorter window) is
+        undisturbed after its end."""
+        arrays = [np.array(data[k], dtype=bool) for k in KINDS] + [np.array(data["z"], dtype=float)]
+        if len(arrays[0]) > WINDOW:
+            raise ValueError(f"a disturbance of {len(arrays[0])} cycles, longer than the window of {WINDOW}")
+        return Disturbance(*(np.concatenate([a, np.zeros((WINDOW - len(a), *a.shape[1:]), a.dtype)]) for a in arrays))
 
 
 @dataclass
@@ -91,8 +129,11 @@ class Proposal:
 
     @staticmethod
     def nominal() -> "Proposal":
-        return Proposal({k: np.full(SHAPES[k], v) for k, v in DISTURBANCES.items()}, np.zeros((WINDOW, CHANNELS)),
-                        np.full(WINDOW, BLIND_STAYS))
+        """The disturbance model; its blindness chain starts stationary (blind at the
+        appearance with P_BLIND)."""
+        p = {k: np.full(SHAPES[k], v) for k, v in DISTURBANCES.items()}
+        p["blind"][0] = P_BLIND
+        return Proposal(p, np.zeros((WINDOW, CHANNELS)), np.full(WINDOW, BLIND_STAYS))
 
     def explore(self) -> "Proposal":
         """The search's first proposal: blindness (the one event that hides an obstacle from
@@ -100,28 +141,40 @@ class Proposal:
         start at their nominal rates (six independent misses in one cycle are 1e-8 likely)."""
         return Proposal({**self.p, "blind": np.maximum(self.p["blind"], EXPLORE)}, self.mu.copy(), self.stays.copy())
 
-    def sample(self, rng: np.random.Generator) -> Disturbance:
-        ev = [rng.random(SHAPES[k]) < self.p[k] for k in KINDS]
-        u = rng.random(WINDOW)
-        blind = np.zeros(WINDOW, dtype=bool)
+    def blind_chains(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """n runs of the blindness chain over the window, (n, WINDOW)."""
+        blind = np.zeros((n, WINDOW), dtype=bool)
+        before = np.zeros(n, dtype=bool)             # the cycle before the window: p["blind"][0] is the start
         for j in range(WINDOW):
-            blind[j] = u[j] < (self.stays[j] if j and blind[j - 1] else self.p["blind"][j])
-        ev[0] = blind
-        return Disturbance(*ev, self.mu + rng.standard_normal((WINDOW, CHANNELS)))
+            before = blind[:, j] = rng.random(n) < np.where(before, self.stays[j], self.p["blind"][j])
+        return blind
 
-    def log_density(self, d: Disturbance) -> float:
-        out = -0.5 * float(np.sum((d.z - self.mu) ** 2))
+    def sample(self, rng: np.random.Generator, n: int) -> list[Disturbance]:
+        """n disturbance sequences drawn from this density."""
+        blind = self.blind_chains(rng, n)
+        ev = [rng.random((n, *SHAPES[k])) < self.p[k] for k in KINDS[1:]]
+        z = self.mu + rng.standard_normal((n, WINDOW, CHANNELS))
+        return [Disturbance(blind[i], *(e[i] for e in ev), z[i]) for i in range(n)]
+
+    def log_density(self, d: Disturbance, cycles: int = WINDOW) -> float:
+        """log q(d), of its first `cycles` cycles (a run that read no more: the density of what
+        it saw)."""
+        z, mu = d.z[:cycles], self.mu[:cycles]
+        out = -0.5 * float(np.sum((z - mu) ** 2))
         for k in KINDS[1:]:
-            x, p = getattr(d, k), self.p[k]
+            x, p = getattr(d, k)[:cycles], self.p[k][:cycles]
             out += float(np.sum(np.where(x, np.log(p), np.log1p(-p))))
-        prev = np.r_[False, d.blind[:-1]]
-        q = np.where(prev, self.stays, self.p["blind"])
-        return out + float(np.sum(np.where(d.blind, np.log(q), np.log1p(-q))))
+        blind = d.blind[:cycles]
+        prev = np.r_[False, blind[:-1]]
+        q = np.where(prev, self.stays[:cycles], self.p["blind"][:cycles])
+        return out + float(np.sum(np.where(blind, np.log(q), np.log1p(-q))))
 
 
 NOMINAL = Proposal.nominal()
 
 
-def log_weight(d: Disturbance, proposal: Proposal) -> float:
-    """log p(d) / q(d): the importance weight of a sample drawn from `proposal`."""
-    return NOMINAL.log_density(d) - proposal.log_density(d)
+def log_weight(d: Disturbance, proposal: Proposal, cycles: int = WINDOW) -> float:
+    """log p(d) / q(d) over the first `cycles` cycles: the importance weight of a sample drawn
+    from `proposal` whose run read no more (the run's end is a stopping time: the ratio up to
+    it weights the samples without bias, and the cycles after it only add variance)."""
+    return NOMINAL.log_density(d, cycles) - proposal.log_density(d, cycles)

@@ -22,8 +22,10 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
                 cfg: Config = Config(), margin_m: float = 0.0, keep: bool = False) -> dict:
     """One encounter under disturbance `d`: the monitor (shipped table `model`) steps on what
     the six channels report, the world's train moves with its demands. Returns the verdict
-    (`failure`: an avoidable collision or a gap below `margin_m`), the closest gap and, with
-    `keep`, every cycle's reports, speed and demand (what the candump log is written from)."""
+    (`failure`: an avoidable collision or a gap below `margin_m`), the closest gap, the
+    `cycles` of the window it read (the run's end depends on those only, so what `d` holds
+    after them decides nothing) and, with `keep`, every cycle's reports, speed and demand
+    (what the candump log is written from)."""
     setup = shipped_setup(model, cfg)
     period = cfg.period_ms
     state = cycle.initial_state(setup)
@@ -36,6 +38,7 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
     released = False                    # an emergency let go to no braking while the train still moved towards the obstacle
     closest, collision, impact, unavoidable = math.inf, False, None, False
     k_appear = None
+    cycles = 0                          # cycles of the window the run read (it stops once the train stands)
     for k in range(int(120 * 1000 / period)):
         tick = k * period
         t = twin.time if started else 0.0
@@ -47,8 +50,10 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
         seen_x, seen_v = twin.at(t - world.sensor_latency_s) if started else (0.0, 0.0)
         gap = None if obstacle_at is None else obstacle_at - seen_x
         visible = gap is not None and 0.0 < gap <= RANGE_M
+        dist = j is not None and 0 <= j < WINDOW
+        if dist:
+            cycles = j + 1
         for c in range(CHANNELS):
-            dist = j is not None and 0 <= j < WINDOW
             if dist and d.drop[j, c]:
                 continue                                    # lost: the latched report ages
             if visible and not (dist and (d.blind[j] or d.miss[j, c])):
@@ -84,7 +89,7 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
     failure = (collision or closest < margin_m) and not unavoidable
     res = {"failure": bool(failure), "collision": collision, "unavoidable": unavoidable, "released": released,
            "closest_m": round(closest, 3), "impact_speed_mps": None if impact is None else round(impact, 3),
-           "appear_m": appear_m}
+           "appear_m": appear_m, "cycles": cycles}
     if keep:
         res["rows"] = rows
     return res
@@ -94,11 +99,10 @@ def _evaluate(job: tuple) -> list[dict]:
     """A dask task: several disturbance sequences through the closed loop."""
     model, enc_name, world, cfg, margin_m, batch = job
     enc = ENCOUNTERS[enc_name]
-    return [closed_loop(model, enc, Disturbance.from_lists(d), world, cfg, margin_m) for d in batch]
+    return [closed_loop(model, enc, d, world, cfg, margin_m) for d in batch]
 
 
 def evaluate_all(model: str, enc: Encounter, ds: list[Disturbance], world, cfg: Config, margin_m: float,
                  cluster: Cluster, batch: int = 25) -> list[dict]:
-    jobs = [(model, enc.name, world, cfg, margin_m, [d.as_lists() for d in ds[i:i + batch]])
-            for i in range(0, len(ds), batch)]
+    jobs = [(model, enc.name, world, cfg, margin_m, ds[i:i + batch]) for i in range(0, len(ds), batch)]
     return [r for chunk in map_ordered(_evaluate, jobs, cluster) for r in chunk]

@@ -13,8 +13,9 @@ from monitor.core.config import Config
 from ..report import Check, Progress, Section, md_table
 from ..scale import Cluster
 from .command import run, summarise
-from .disturbances import BETA, BLIND_STAYS, DISTURBANCES, P_MISS
+from .disturbances import BETA, BLIND_STAYS, DISTURBANCES, P_BLIND, P_MISS, WINDOW
 from .encounters import NOISE_SIGMA_M
+from .importance import NO_FAILURE, W_MAX
 
 
 def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] = None, world=None,
@@ -47,7 +48,7 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
                          "-" if f is None else summarise(f["events"])])
         rows.append([name, "P(collision per encounter)",
                      f"IS {rare['p_importance_sampling']:.3g} ({rare['ci95'][0]:.2g}..{rare['ci95'][1]:.2g}, "
-                     f"ESS {rare['effective_sample_size']:.0f})",
+                     f"{rare['effective_failures']:.1f} effective failures)",
                      f"naive MC {rare['naive']['failures']}/{rare['samples']} (95 % upper {rare['naive']['ci95_upper']:.2g})"])
     from ..hazard import THR_CATASTROPHIC, THR_SIL3
 
@@ -61,13 +62,18 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
     md = ("The search (`railguard stress`, cross-entropy method; `verification/stress/`) looks for the likeliest "
           "disturbance sequence that makes the world's train (the declaration's worst corner) hit an obstacle it could "
           "have stopped for, in the hardest encounter the supervision is built for: a static object appearing one cycle "
-          "of travel beyond EBI at 30 m/s. Disturbances per cycle: a common-cause blindness of every channel (begins "
-          f"with {DISTURBANCES['blind']:.3g}, goes on with {BLIND_STAYS}: seed 002's p_n = {P_MISS} times a beta factor "
-          f"of {BETA}), independent misses ({DISTURBANCES['miss']:.3g} per channel), lost frames "
-          f"({DISTURBANCES['drop']}), ghosts ({DISTURBANCES['ghost']}) and {NOISE_SIGMA_M} m distance noise. "
+          "of travel beyond EBI at 30 m/s. Disturbances per cycle, in the "
+          f"{WINDOW * cfg.period_ms / 1000:g} s from the appearance (the slowest encounter stands still within "
+          "them): a common-cause blindness of every channel "
+          f"{P_BLIND:.3g} of the time (seed 002's p_n = {P_MISS} times a beta factor of {BETA}: it begins with "
+          f"{DISTURBANCES['blind']:.3g} per clear cycle and goes on with {BLIND_STAYS}, 1 s on average), independent "
+          f"misses ({DISTURBANCES['miss']:.4g} per channel, so that each channel misses {P_MISS} of the cycles), lost "
+          f"frames ({DISTURBANCES['drop']}), ghosts ({DISTURBANCES['ghost']}) and {NOISE_SIGMA_M} m distance noise. "
           "Log-likelihoods are against the undisturbed run. The probability of a collision per such encounter is "
-          "estimated by importance sampling with the search's proposal (a defensive mixture with the nominal model) "
-          "and by naive Monte Carlo at the same budget. These figures hold under this disturbance model only; "
+          "estimated by importance sampling with the search's proposal (a defensive mixture with the nominal model, "
+          f"weights at most {W_MAX:g}; 95 % interval: Clopper-Pearson on the effective number of failures, and "
+          f"0..{NO_FAILURE:.2g}/n with none) and by naive Monte Carlo at the same budget. These figures "
+          "hold under this disturbance model only; "
           "its rates are assumptions, not measurements. Against the tolerable hazard rates of the hazard section "
           "(1e-9 /h, CSM-DT catastrophic; 1e-7 /h, SIL 3): at one such encounter per train-hour, the probability per "
           "encounter must stay below those numbers. `m2 held` (full mode) is the same table with every emergency held to "

@@ -52,6 +52,8 @@ void rg_config_default(rg_config *cfg)
     cfg->recovery_cycles = 10;
     cfg->max_overruns = 3;
     cfg->distance_tolerance_dm = 100;
+    cfg->forget_ms = 7500;
+    cfg->sensor_range_dm = 4000;
 }
 
 static int refuse(char *msg, size_t len, const char *name, long long value, const char *why)
@@ -171,6 +173,10 @@ int rg_config_check(const rg_config *c, char *msg, size_t len)
         return refuse(msg, len, "max_overruns", c->max_overruns, "must be 1..1000");
     if (c->distance_tolerance_dm < 0 || c->distance_tolerance_dm > 60000)
         return refuse(msg, len, "distance_tolerance_dm", c->distance_tolerance_dm, "must be 0..60000 dm");
+    if (c->forget_ms < 1 || c->forget_ms > 600000)
+        return refuse(msg, len, "forget_ms", c->forget_ms, "must be 1..600000 ms (10 min; rounded up to whole cycles)");
+    if (c->sensor_range_dm < 1 || c->sensor_range_dm > RG_MAX_DISTANCE_DM)
+        return refuse(msg, len, "sensor_range_dm", c->sensor_range_dm, "must be 1..60000 dm");
     return 0;
 }
 
@@ -238,13 +244,33 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     (void)cfg;
     s->mode = RG_INIT;
     s->node = (int32_t)t->start;
-    s->latched = 0;
+    s->held = RG_MAINTAIN;
     s->seen = 0;
-    for (m = 0; m < RG_MAX_MODULES; m++) s->disagree[m] = 0;
+    for (m = 0; m < RG_MAX_MODULES; m++) {
+        s->disagree[m] = 0;
+        s->agree[m] = 0;
+    }
     s->healthy = 0;
     s->cycle = 0;
     s->error_cycles = 0;
     s->calm = 0;
+    s->table_held = RG_MAINTAIN;
+    s->track_near = RG_NO_TRACK;
+    s->track_far = RG_NO_TRACK;
+    s->track_closing = 0;
+    s->track_age_ms = 0;
+    s->track_cycles = 0;
+    s->track_absent = 0;
+}
+
+/* config.py's forget_cycles: cycles of evidence that make forget_ms, rounded up (never
+ * forget early). At least 1 (an accepted configuration has forget_ms >= 1, so the guard
+ * never acts; EVA, which does not relate the two fields, needs it for rg_forget). */
+int32_t rg_forget_cycles(const rg_config *cfg)
+{
+    const int64_t period = cfg->period_ms < 1 ? 1 : cfg->period_ms;
+    const int64_t n = ((int64_t)cfg->forget_ms + period - 1) / period;
+    return n < 1 ? 1 : (n > RG_MAX_COUNT ? RG_MAX_COUNT : (int32_t)n);
 }
 
 /*@ assigns \nothing;
@@ -606,6 +632,7 @@ int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32
     ensures 0 <= ebi_dm <= sbi_dm <= warning_dm ==> (*warn == 1 <==> (present != 0 && distance_dm <= warning_dm));
     ensures ebi_dm <= sbi_dm && present != 0 && distance_dm > sbi_dm ==> \result == 0;
     ensures held == 0 && present != 0 && distance_dm > ebi_dm ==> \result <= 1;
+    ensures present != 0 && distance_dm > ebi_dm && distance_dm > sbi_dm ==> \result == 0;
 */
 int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
                               int32_t held, int32_t *warn)
@@ -639,34 +666,286 @@ int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand)
     return d;
 }
 
+/* The supervised demand (cycle.py): the curves supervise the voted obstacle and, unless a
+ * confirmed picture has just replaced it (`remembered` == 0), the remembered one, each on
+ * its own curves (the remembered one's with its remembered closing speed and report age);
+ * the higher demand counts. `held` is the level held so far: while an emergency is held
+ * the obstacle must be back beyond SBI. So a demand a curve raised is never lowered by this
+ * function while the train is inside that curve for the remembered obstacle, whatever the
+ * voted picture says; rg_combine and rg_hold pass it on (rg_decide). RG_NO_DISTANCE
+ * (65535) is "no voted obstacle". */
+/*@ requires \valid(warn);
+    assigns *warn;
+    ensures 0 <= \result <= 2 && (*warn == 0 || *warn == 1);
+    ensures remembered != 0 && track_dm <= track_ebi_dm ==> \result == 2;
+    ensures remembered != 0 && track_dm <= track_sbi_dm ==> \result >= 1;
+    ensures held == 2 && remembered != 0 && track_dm <= track_sbi_dm ==> \result == 2;
+    ensures voted_dm != 65535 && voted_dm <= voted_ebi_dm ==> \result == 2;
+    ensures voted_dm != 65535 && voted_dm <= voted_sbi_dm ==> \result >= 1;
+    ensures held == 2 && voted_dm != 65535 && voted_dm <= voted_sbi_dm ==> \result == 2;
+    ensures \result >= 1 ==> (remembered != 0 && (track_dm <= track_ebi_dm || track_dm <= track_sbi_dm))
+                             || (voted_dm != 65535 && (voted_dm <= voted_ebi_dm || voted_dm <= voted_sbi_dm));
+    ensures voted_dm == 65535 && remembered == 0 ==> \result == 0 && *warn == 0;
+*/
+int32_t rg_supervised_demand(int32_t voted_dm, int32_t voted_ebi_dm, int32_t voted_sbi_dm, int32_t voted_warning_dm,
+                             int32_t remembered, int32_t track_dm, int32_t track_ebi_dm, int32_t track_sbi_dm,
+                             int32_t track_warning_dm, int32_t held, int32_t *warn)
+{
+    const int32_t latched = held == RG_EMERGENCY;
+    int32_t demand = RG_MAINTAIN, w = 0, track_demand, track_warn = 0;
+    if (voted_dm != RG_NO_DISTANCE)
+        demand = rg_supervision_demand(1, voted_dm, voted_ebi_dm, voted_sbi_dm, voted_warning_dm, latched, &w);
+    if (remembered) {
+        track_demand = rg_supervision_demand(1, track_dm, track_ebi_dm, track_sbi_dm, track_warning_dm, latched,
+                                             &track_warn);
+        if (track_demand > demand) demand = track_demand;
+        if (track_warn) w = 1;
+    }
+    *warn = w;
+    return demand;
+}
+
+/* envelope.hold: a demand, once raised, is held while the train moves and lowered only
+ * after the causes have asked for less for `confirm` cycles in a row (`calm` counts them);
+ * an emergency only if `revocable`, else at standstill. Returns the new level (= the
+ * final demand). `calm + 1` is never formed when it reaches `confirm`: no overflow for
+ * any int32. */
 /*@ requires confirm >= 1;
     requires \valid(calm_out) && \valid(final_demand) && \separated(calm_out, final_demand);
     assigns *calm_out, *final_demand;
-    ensures \result == 0 || \result == 1;
-    ensures 0 <= demand <= 2 ==> *final_demand >= demand;
-    ensures demand == 2 && speed_cms > 0 ==> \result == 1 && *calm_out == 0;
-    ensures speed_cms <= 0 ==> \result == 0 && *calm_out == 0 && *final_demand == demand;
-    ensures latched != 0 && speed_cms > 0 && revocable == 0 ==> \result == 1;
-    ensures latched != 0 && speed_cms > 0 && calm + 1 < confirm ==> \result == 1;
-    ensures *final_demand == (\result == 1 ? 2 : demand);
-    ensures *calm_out < confirm && (revocable != 0 || *calm_out == 0);
+    ensures *final_demand >= demand;
+    ensures *final_demand == \result;
+    ensures speed_cms <= 0 ==> \result == demand && *calm_out == 0;
+    ensures demand == 2 && level <= 2 ==> \result == 2 && *calm_out == 0;
+    ensures demand >= level ==> \result == demand && *calm_out == 0;
+    ensures 0 <= demand <= 2 && level == 2 && speed_cms > 0 && revocable == 0 ==> \result == 2;
+    ensures speed_cms > 0 && calm + 1 < confirm ==> \result >= level;
+    ensures \result < level ==> speed_cms <= 0 || calm + 1 >= confirm;
+    ensures \result == level || \result == demand;
+    ensures *calm_out < confirm && (*calm_out == 0 || *calm_out == calm + 1);
     ensures calm >= 0 ==> *calm_out >= 0;
 */
-int32_t rg_latch(int32_t latched, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
-                 int32_t *calm_out, int32_t *final_demand)
+int32_t rg_hold(int32_t level, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
+                int32_t *calm_out, int32_t *final_demand)
 {
-    int32_t held = (latched || demand == RG_EMERGENCY) && speed_cms > 0;
-    int32_t count = 0;
-    if (held && revocable && demand != RG_EMERGENCY) {
-        if (calm >= confirm - 1) {
-            held = 0;            /* calm + 1 >= confirm: released (calm + 1 is never formed) */
-        } else {
-            count = calm + 1;
-        }
+    int32_t out = level, count = 0;
+    if (speed_cms <= 0 || demand >= level) {
+        out = demand;
+    } else if (level == RG_EMERGENCY && !revocable) {
+        out = level;
+    } else if (calm >= confirm - 1) {
+        out = demand;            /* calm + 1 >= confirm: released */
+    } else {
+        count = calm + 1;
     }
     *calm_out = count;
-    *final_demand = held ? RG_EMERGENCY : demand;
-    return held;
+    *final_demand = out;
+    return out;
+}
+
+/* envelope.table_hold: what the table raised is lowered only once the voted picture has left
+ * the table's zones (`zone_free`: observed zone 0), or at standstill. */
+/*@ assigns \nothing;
+    ensures \result >= demand;
+    ensures \result == level || \result == demand;
+    ensures speed_cms > 0 && zone_free == 0 ==> \result >= level;
+    ensures speed_cms <= 0 || zone_free != 0 ==> \result == demand;
+*/
+int32_t rg_table_hold(int32_t level, int32_t demand, int32_t speed_cms, int32_t zone_free)
+{
+    if (demand >= level || speed_cms <= 0 || zone_free) return demand;
+    return level;
+}
+
+/* The cycle's decision (cycle.py step 7 without INIT's emergency): the curves' demand for
+ * the supervised obstacle, raised by the table's and the error rules' (only ever upwards),
+ * then held. Its contract is the promise of issue 29 for the whole decision: a demand a
+ * curve raised is never lowered while the train is inside that curve for the remembered
+ * obstacle (inside EBI: emergency; inside SBI: at least service, and emergency while an
+ * emergency is held), and what is held is lowered only at standstill or after `confirm`
+ * calm cycles. */
+/*@ requires \valid_read(voted) && \valid_read(remembered) && \valid(d);
+    requires \separated(d, voted) && \separated(d, remembered);
+    requires confirm >= 1;
+    assigns *d;
+    ensures \result == d->final_demand;
+    ensures 0 <= d->env <= 2 && (d->warning == 0 || d->warning == 1);
+    ensures d->demand == rg_max3(table_demand, d->env, error_demand);
+    ensures d->final_demand >= d->demand && d->final_demand >= d->env;
+    ensures track_sup != 0 && track_dm <= remembered->ebi_dm ==> d->env == 2 && d->final_demand >= 2;
+    ensures track_sup != 0 && track_dm <= remembered->sbi_dm ==> d->env >= 1 && d->final_demand >= 1;
+    ensures level == 2 && track_sup != 0 && track_dm <= remembered->sbi_dm ==> d->env == 2 && d->final_demand >= 2;
+    ensures voted_dm != 65535 && voted_dm <= voted->ebi_dm ==> d->env == 2 && d->final_demand >= 2;
+    ensures level == 2 && voted_dm != 65535 && voted_dm <= voted->sbi_dm ==> d->env == 2 && d->final_demand >= 2;
+    ensures d->final_demand < level ==> speed_cms <= 0 || calm + 1 >= confirm;
+    ensures d->final_demand == level || d->final_demand == d->demand;
+    ensures d->calm < confirm;
+*/
+int32_t rg_decide(int32_t voted_dm, const rg_curve_set *voted, int32_t track_sup, int32_t track_dm,
+                  const rg_curve_set *remembered, int32_t table_demand, int32_t error_demand, int32_t level,
+                  int32_t calm, int32_t speed_cms, int32_t revocable, int32_t confirm, rg_decision *d)
+{
+    d->env = rg_supervised_demand(voted_dm, voted->ebi_dm, voted->sbi_dm, voted->warning_dm, track_sup, track_dm,
+                                  remembered->ebi_dm, remembered->sbi_dm, remembered->warning_dm, level, &d->warning);
+    d->demand = rg_combine(table_demand, d->env, error_demand);
+    return rg_hold(level, calm, d->demand, speed_cms, revocable, confirm, &d->calm, &d->final_demand);
+}
+
+/* ---- obstacle memory (memory.py): positions in 1e-5 m, the unit of cm/s x ms ---------- */
+
+/*@ requires 0 <= accel_mms2 <= 10000 && 1 <= period_ms <= 10000;
+    assigns \nothing;
+    ensures \result >= 0;
+    ensures \result * 20000 >= accel_mms2 * period_ms * period_ms;
+    ensures (\result - 1) * 20000 < accel_mms2 * period_ms * period_ms;
+*/
+int64_t rg_accel_run(int64_t accel_mms2, int64_t period_ms)
+{
+    /* a T^2 / 2 in 1e-5 m, rounded up: mm/s^2 x ms^2 = 1e-9 m */
+    return (accel_mms2 * period_ms * period_ms + 19999) / 20000;
+}
+
+/* The most the gap to a remembered obstacle can shrink in the next period: the train at
+ * its measured speed plus the speed error, accelerating at `accel_mms2`, and the obstacle
+ * closing at its own speed. The third ensures is stronger than Python's two: every term
+ * (speed error, acceleration, the obstacle's speed) is there, each rounded up. */
+/*@ requires 0 <= speed_cms <= 12000 && 0 <= error_permille <= 500 && 0 <= accel_mms2 <= 10000;
+    requires 0 <= obstacle_cms <= 15000 && 1 <= period_ms <= 10000;
+    assigns \nothing;
+    ensures \result * 1000 >= speed_cms * (1000 + error_permille) * period_ms + obstacle_cms * period_ms * 1000;
+    ensures \result >= speed_cms * period_ms + obstacle_cms * period_ms;
+    ensures \result * 20000 >= 20 * speed_cms * (1000 + error_permille) * period_ms
+                               + accel_mms2 * period_ms * period_ms + 20000 * obstacle_cms * period_ms;
+    ensures \result * 20000 < 20 * speed_cms * (1000 + error_permille) * period_ms
+                              + accel_mms2 * period_ms * period_ms + 20000 * obstacle_cms * period_ms
+                              + 20000 * (period_ms + 1);
+*/
+int64_t rg_near_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t obstacle_cms,
+                       int64_t period_ms)
+{
+    const int64_t x = speed_cms * (1000 + error_permille);
+    const int64_t v_max = (x + 999) / 1000;            /* the speed plus its error, rounded up */
+    const int64_t run = rg_accel_run(accel_mms2, period_ms);
+    /* (hints for the provers: the rounding, then times the period) */
+    /*@ assert hint_round: v_max * 1000 >= x && v_max * 1000 < x + 1000; */
+    /*@ assert hint_sign: (v_max * 1000 - x) * period_ms >= 0 && (x + 1000 - v_max * 1000) * period_ms > 0; */
+    /*@ assert hint_times: v_max * 1000 * period_ms >= x * period_ms
+                           && v_max * 1000 * period_ms < x * period_ms + 1000 * period_ms; */
+    return v_max * period_ms + run + obstacle_cms * period_ms;
+}
+
+/* The least the train can have run in the period that ended at this speed: the measured
+ * speed less the speed error, less what acceleration in the period explains, never below
+ * 0 (what "passed" is judged on). */
+/*@ requires 0 <= speed_cms <= 12000 && 0 <= error_permille <= 500 && 0 <= accel_mms2 <= 10000;
+    requires 1 <= period_ms <= 10000;
+    assigns \nothing;
+    ensures \result >= 0;
+    ensures \result * 1000 <= speed_cms * (1000 - error_permille) * period_ms;
+    ensures \result == 0 || \result * 20000 <= 20000 * speed_cms * period_ms - accel_mms2 * period_ms * period_ms;
+    ensures \result == 0 || \result * 20000 <= 20 * speed_cms * (1000 - error_permille) * period_ms
+                                               - accel_mms2 * period_ms * period_ms;
+*/
+int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t period_ms)
+{
+    const int64_t x = speed_cms * (1000 - error_permille);
+    const int64_t v_min = x / 1000;                    /* the speed less its error, rounded down */
+    const int64_t run = v_min * period_ms - rg_accel_run(accel_mms2, period_ms);
+    /* (hints for the provers: the rounding, then times the period) */
+    /*@ assert hint_round: 0 <= v_min * 1000 <= x && v_min <= speed_cms; */
+    /*@ assert hint_sign: (x - v_min * 1000) * period_ms >= 0 && (speed_cms - v_min) * period_ms >= 0; */
+    /*@ assert hint_times: v_min * 1000 * period_ms <= x * period_ms && v_min * period_ms <= speed_cms * period_ms; */
+    return run > 0 ? run : 0;
+}
+
+/* The track after a voted obstacle at `distance_dm`: a confirmed picture creates or
+ * replaces it; a disputed one creates none and only brings an existing track nearer (a
+ * farther sighting never hides a nearer remembered obstacle). A receding obstacle's speed
+ * is remembered as 0. (Python: distance 0..60000; 65535 here, the voted distance's whole
+ * range as EVA sees it, still fits int32 in 1e-5 m.) */
+/*@ requires \valid(track);
+    requires 0 <= distance_dm <= 65535;
+    requires track->near >= -1 && track->closing_cms >= 0;
+    assigns *track;
+    ensures track->near <= distance_dm * 10000;
+    ensures track->near == -1 || (track->near >= 0 && track->closing_cms >= 0 && track->closing_cms >= obstacle_cms);
+    ensures confirmed != 0 ==> track->near == distance_dm * 10000 && track->far == distance_dm * 10000
+                               && track->closing_cms == \max(obstacle_cms, 0) && track->age_ms == age_now;
+    ensures confirmed == 0 && \old(track->near) == -1 ==>
+            track->near == -1 && track->far == -1 && track->closing_cms == 0 && track->age_ms == 0;
+    ensures confirmed == 0 && \old(track->near) != -1 ==>
+            track->near <= \old(track->near) && track->closing_cms >= \old(track->closing_cms);
+*/
+void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed)
+{
+    const int32_t d = distance_dm * RG_UNITS_PER_DM;
+    const int32_t own = obstacle_cms > 0 ? obstacle_cms : 0;
+    if (confirmed) {
+        track->near = d;
+        track->far = d;
+        track->closing_cms = own;
+        track->age_ms = age_now;
+    } else if (track->near == RG_NO_TRACK) {
+        track->far = RG_NO_TRACK;
+        track->closing_cms = 0;
+        track->age_ms = 0;
+    } else {
+        if (own > track->closing_cms) track->closing_cms = own;
+        if (d <= track->near) {
+            track->near = d;
+            track->far = d;
+            track->age_ms = age_now;
+        }
+    }
+}
+
+/* The evidence count and state of a remembered obstacle that no channel shows. `far` is
+ * the remembered position less the train's least travel: below 0 the train has passed it
+ * (forgotten at once). Fresh unanimous ABSENT (`evidence`) while `far` lies inside the
+ * declared sensor range counts towards forgetting, after `forget_cycles` such cycles in a
+ * row; anything else holds it. (Python: forget(cycles, evidence, in_range, passed, n) with
+ * in_range = far <= range_dm * 10000 and passed = far < 0 computed by cycle.py.) */
+/*@ requires forget_cycles >= 1;
+    requires \valid(state);
+    assigns *state;
+    ensures 2 <= *state <= 5;
+    ensures *state == 5 <==> far < 0;
+    ensures *state == 4 ==> evidence != 0 && 0 <= far <= range_dm * 10000 && cycles_absent + 1 >= forget_cycles;
+    ensures far >= 0 && evidence != 0 && far <= range_dm * 10000 ==> *state >= 3;
+    ensures far >= 0 && !(evidence != 0 && far <= range_dm * 10000) ==> \result == 0 && *state == 2;
+    ensures *state == 3 ==> \result == cycles_absent + 1 && evidence != 0 && 0 <= far <= range_dm * 10000;
+    ensures \result < forget_cycles;
+    ensures cycles_absent >= 0 ==> \result >= 0;
+*/
+int32_t rg_forget(int32_t cycles_absent, int32_t evidence, int64_t far, int32_t range_dm, int32_t forget_cycles,
+                  int32_t *state)
+{
+    if (far < 0) {
+        *state = RG_TRACK_PASSED;
+        return 0;
+    }
+    if (!evidence || far > (int64_t)range_dm * RG_UNITS_PER_DM) {
+        *state = RG_TRACK_HELD;
+        return 0;
+    }
+    if (cycles_absent >= forget_cycles - 1) {   /* cycles_absent + 1 >= forget_cycles (never formed) */
+        *state = RG_TRACK_FORGOTTEN;
+        return 0;
+    }
+    *state = RG_TRACK_CONFIRMING;
+    return cycles_absent + 1;
+}
+
+/* memory.distance_dm: the remembered distance in dm, rounded down (nearer is the safe side). */
+/*@ assigns \nothing;
+    ensures near == -1 ==> \result == 65535;
+    ensures near < 655350000 ==> (near == -1 <==> \result == 65535);
+    ensures near >= 0 ==> \result * 10000 <= near && near < (\result + 1) * 10000;
+    ensures 0 <= near < 655350000 ==> \result < 65535;
+*/
+int32_t rg_track_dm(int32_t near)
+{
+    return near == RG_NO_TRACK ? RG_NO_DISTANCE : near / RG_UNITS_PER_DM;
 }
 
 static int32_t inc(int32_t count)
@@ -681,13 +960,13 @@ static int32_t speed_class(int32_t closing_cms, int32_t fast_cms)
 }
 
 /* The cycle that Python's `step` falls back to when something unforeseen happens inside
- * (here: a state whose node is outside the table). */
+ * (here: a state no cycle can produce, for example a node outside the table). */
 static void safe_stop_fallback(rg_state *s, rg_outputs *out)
 {
     s->cycle = inc(s->cycle);
     s->error_cycles = inc(s->error_cycles);
     s->mode = RG_SAFE_STOP;
-    s->latched = 1;
+    s->held = RG_EMERGENCY;
     s->healthy = 0;
     s->calm = 0;
     out->demand = RG_EMERGENCY;
@@ -701,11 +980,14 @@ static void safe_stop_fallback(rg_state *s, rg_outputs *out)
     out->cycle = s->cycle;
     out->error_cycles = s->error_cycles;
     out->warning = 1;
+    out->track_dm = RG_NO_DISTANCE;
+    out->track_cycles = 0;
+    out->track_state = RG_TRACK_NONE;
 }
 
-/* Zone of the voted obstacle for the table: alpha2 = EBI and alpha1 = the service curve's
- * EBI, both under normal conditions (alpha1 at least alpha2); `ebi` is the EBI under the
- * reported conditions, which is alpha2 when they are normal. */
+/* cycle._table_zone: zone of an obstacle for the table: alpha2 = EBI and alpha1 = the
+ * service curve's EBI, both under normal conditions (alpha1 at least alpha2); `ebi` is the
+ * EBI under the reported conditions, which is alpha2 when they are normal. */
 static int32_t table_zone(const rg_config *cfg, int32_t distance, int32_t speed, int32_t adverse, int32_t toward,
                           int32_t age, int32_t ebi)
 {
@@ -728,17 +1010,32 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     /* the age limit: timeout_ticks itself for an accepted configuration */
     const int64_t age_limit = timeout_ticks < RG_MAX_AGE_MS ? timeout_ticks : RG_MAX_AGE_MS;
     const uint32_t all_seen = (1u << channels) - 1u;
-    int32_t statuses[RG_MAX_CHANNELS];
+    const int32_t forget_cycles = rg_forget_cycles(cfg);
+    /* mm/s^2 the train may gain: traction plus the steepest downhill (cycle.Setup.track_accel) */
+    const int64_t track_accel = (int64_t)cfg->max_accel_mms2 + rg_gradient_accel_mms2(cfg->max_gradient_permille);
+    const int64_t err = cfg->speed_error_permille;
+    int32_t statuses[RG_MAX_CHANNELS], dist[RG_MAX_CHANNELS];
     int32_t ms[RG_MAX_MODULES], md[RG_MAX_MODULES], mf[RG_MAX_MODULES], disagree[RG_MAX_MODULES];
+    int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
-    int32_t node, table_demand, reasons, error_demand, demand, latched, calm, final_demand, error_cycles;
+    int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
+    int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
     int32_t i, m;
-    rg_curve_set curve;
+    rg_track trk;
+    rg_decision dec;
+    rg_curve_set curve = {0, 0, 0, 0}, tcurve = {0, 0, 0, 0};
 
-    if (s->node < 0 || (uint32_t)s->node >= t->nodes) {
+    /* a state that no cycle can produce (rg_initial_state and rg_step only ever write these
+     * ranges): SAFE_STOP, as Python's step does on an exception. (Written out here, not in
+     * a helper, so that EVA narrows the fields' ranges after it.) */
+    if (s->node < 0 || (uint32_t)s->node >= t->nodes || s->held < RG_MAINTAIN || s->held > RG_EMERGENCY
+        || s->table_held < RG_MAINTAIN || s->table_held > RG_EMERGENCY || s->track_near < RG_NO_TRACK
+        || s->track_near > RG_MAX_TRACK || s->track_far < RG_NO_TRACK || s->track_far > RG_MAX_TRACK
+        || s->track_closing < 0 || s->track_closing > RG_MAX_CLOSING_CMS || s->track_age_ms < 0
+        || s->track_age_ms > RG_MAX_AGE_MS) {
         safe_stop_fallback(s, out);
         return;
     }
@@ -746,6 +1043,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     /* 1. freshness and range per channel */
     for (i = 0; i < channels; i++) {
         statuses[i] = rg_effective_status(&in->reports[i], tick, timeout_ticks);
+        dist[i] = 0;
         if (statuses[i] == RG_DEGRADED) {
             stale = 1;
         } else {
@@ -757,6 +1055,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
                  * cannot relate the status to the fields, takes the ranges from it */
                 /*@ assert present_in_range: 0 <= r->distance_dm <= 60000 && -15000 <= r->closing_cms <= 15000
                                              && 0 <= r->obstacle <= 2; */
+                dist[i] = r->distance_dm;     /* (kept here, where EVA knows its range) */
                 if (!have_closing || r->closing_cms > closing) closing = r->closing_cms;
                 have_closing = 1;
                 if (r->obstacle > obstacle) obstacle = r->obstacle;
@@ -766,15 +1065,21 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         }
     }
 
-    /* 2. 2oo2 per module, with disagreement persistence */
+    /* 2. 2oo2 per module, with disagreement persistence: disagreement cycles add up until
+     *    `persistence_cycles` calm cycles in a row clear them, so a flapping channel escalates */
     for (m = 0; m < modules; m++) {
         int32_t sa = statuses[2 * m], sb = statuses[2 * m + 1];
-        int32_t da = sa == RG_PRESENT ? in->reports[2 * m].distance_dm : 0;
-        int32_t db = sb == RG_PRESENT ? in->reports[2 * m + 1].distance_dm : 0;
+        int32_t da = dist[2 * m], db = dist[2 * m + 1];   /* the distance if PRESENT, else 0 */
         rg_vote_2oo2(sa, da, sb, db, &ms[m], &md[m], &mf[m]);
         if (rg_distances_disagree(sa, da, sb, db, cfg->distance_tolerance_dm)) mf[m] = 1;
         if (mf[m]) flags |= 1 << m;
-        disagree[m] = rg_disagreement(sa, sb) ? inc(s->disagree[m]) : 0;
+        if (rg_disagreement(sa, sb)) {
+            disagree[m] = inc(s->disagree[m]);
+            agree[m] = 0;
+        } else {
+            agree[m] = inc(s->agree[m]);
+            disagree[m] = agree[m] >= cfg->persistence_cycles ? 0 : s->disagree[m];
+        }
         if (disagree[m] >= cfg->persistence_cycles) perceptor = 1;
     }
 
@@ -787,8 +1092,9 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         sys_error = mf[0] || ms[0] == RG_DEGRADED;
     }
 
-    /* 4. braking curves at the measured speed, under the reported conditions; an invalid
-     *    train state is read to the safe side */
+    /* 4. obstacle memory: the remembered obstacle was moved to this cycle at the end of the
+     *    last one (worst case); the train's least travel moves what "passed" reads. An
+     *    invalid train state is read to the safe side. */
     speed = in->train.speed_cms;
     track = in->train.track;
     brake = in->train.brake;
@@ -800,16 +1106,55 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         track = 1;
         brake = 1;
     }
+    own_speed = (int32_t)((int64_t)speed * (1000 - err) / 1000);   /* the train's share of a closing speed */
     present = distance != RG_NO_DISTANCE;
     toward = have_closing ? closing : speed;
-    rg_curves(cfg, speed, track, brake, toward, age, 0, &curve);
-    env = rg_supervision_demand(present, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, s->latched, &warn);
-
-    /* 5. observation (the table's zones under normal conditions) */
+    trk.near = s->track_near;
+    trk.far = s->track_far;
+    trk.closing_cms = s->track_closing;
+    trk.age_ms = s->track_age_ms;
+    confirmed = present && sys_status == RG_PRESENT && !sys_error;
     if (present) {
+        rg_observe(&trk, distance, toward - own_speed, age, confirmed);
+        if (trk.near == RG_NO_TRACK) {
+            t_state = RG_TRACK_NONE;
+        } else if (trk.near == (int64_t)distance * 10000) {
+            t_state = RG_TRACK_SEEN;
+        } else {                            /* a farther disputed sighting: the track was not seen */
+            t_state = RG_TRACK_HELD;
+            t_cycles = inc(s->track_cycles);
+        }
+    } else if (trk.near != RG_NO_TRACK) {
+        const int64_t far = (int64_t)trk.far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
+        const int32_t evidence = sys_status == RG_ABSENT && !sys_error && !stale;
+        t_absent = rg_forget(s->track_absent, evidence, far, cfg->sensor_range_dm, forget_cycles, &t_state);
+        if (t_state == RG_TRACK_FORGOTTEN || t_state == RG_TRACK_PASSED) {
+            trk.near = RG_NO_TRACK;
+            trk.far = RG_NO_TRACK;
+            trk.closing_cms = 0;
+            trk.age_ms = 0;
+        } else {
+            trk.far = (int32_t)far;
+            t_cycles = inc(s->track_cycles);
+        }
+    } else {
+        t_state = RG_TRACK_NONE;
+    }
+    t_dm = rg_track_dm(trk.near);
+
+    /* 5. braking curves at the measured speed for the voted obstacle and for the remembered
+     *    one (unless a confirmed picture just replaced it), under the reported conditions;
+     *    the higher demand counts (rg_decide); the table's zones under normal ones; the
+     *    observation reads the voted picture alone */
+    if (present) {
+        rg_curves(cfg, speed, track, brake, toward, age, 0, &curve);
         z = table_zone(cfg, distance, speed, track || brake, toward, age, curve.ebi_dm);
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
+    }
+    remembered = trk.near != RG_NO_TRACK && !confirmed;
+    if (remembered) {
+        rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, &tcurve);
     }
     if (t->model == RG_MODEL_M1) {
         obs = z;
@@ -836,55 +1181,82 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         mode = RG_NORMAL;
     }
 
-    /* 6. table (held during any system error: it reads only pictures the voter confirms) */
+    /* 6. table (held during any system error: it reads only pictures the voter confirms);
+     *    what the table raised is held while the voted picture is in the table's zones (a
+     *    remembered obstacle is the curves' business: the table acts on what is seen) */
     if (mode == RG_INIT) {
         node = (int32_t)t->start;
         table_demand = RG_MAINTAIN;
     } else {
         node = (error && mode != RG_SAFE_STOP) ? s->node : (int32_t)next_node(t, (uint32_t)s->node, (uint32_t)obs);
-        table_demand = t->bytes[t->action_offset + (uint32_t)node];
+        table_demand = rg_table_hold(s->table_held, t->bytes[t->action_offset + (uint32_t)node], speed, z == 0);
     }
 
-    /* 7. demands, only ever upwards, then the latch; INIT brakes without latching */
+    /* 7. the error rules' demand; the curves' demand for the supervised obstacle, raised by
+     *    the table's and the error rules' (only ever upwards), then the hold (released only
+     *    after release_confirm_cycles in which the causes, remembered obstacles included, ask
+     *    for less): rg_decide, whose contract says that a demand a curve raised is not
+     *    lowered while the train is inside that curve for the remembered obstacle. INIT
+     *    brakes without holding. */
     reasons = 0;
     error_demand = RG_MAINTAIN;
+    if (error && !dispute && mode != RG_INIT) error_demand = cfg->safe_reaction;  /* INIT: covered below, unheld */
+    if (mode == RG_SAFE_STOP) error_demand = RG_EMERGENCY;
+    held = rg_decide(distance, &curve, remembered, t_dm, &tcurve, table_demand, error_demand, s->held, s->calm, speed,
+                     cfg->emergency_release == RG_RELEASE_REVOCABLE, cfg->release_confirm_cycles, &dec);
+    env = dec.env;
+    warn = dec.warning;
+    demand = dec.demand;
+    calm = dec.calm;
+    final_demand = dec.final_demand;
     if (table_demand) reasons |= RG_R_TABLE;
     if (env == RG_EMERGENCY) reasons |= RG_R_ENVELOPE;
     else if (env == RG_SERVICE) reasons |= RG_R_SBI;
     if (stale) reasons |= RG_R_STALE;
+    if (remembered) reasons |= RG_R_MEMORY;
     if (error) {
         reasons |= RG_R_SYSTEM_ERROR | (train_ok ? 0 : RG_R_TRAIN_INPUT);
         if (dispute) {
             reasons |= RG_R_DISPUTE;
             warn = 1;
-        } else if (mode != RG_INIT) {   /* in INIT the emergency below covers it, unlatched */
-            error_demand = cfg->safe_reaction;
         }
     }
-    if (mode == RG_SAFE_STOP) {
-        error_demand = RG_EMERGENCY;
+    if (mode == RG_SAFE_STOP)
         reasons |= RG_R_SAFE_STOP | (perceptor ? RG_R_PERCEPTOR : 0) | (overrun_limit ? RG_R_DEADLINE : 0);
-    }
-    demand = rg_combine(table_demand, env, error_demand);
-    latched = rg_latch(s->latched, s->calm, demand, speed, cfg->emergency_release == RG_RELEASE_REVOCABLE,
-                       cfg->release_confirm_cycles, &calm, &final_demand);
-    if (latched && s->latched && demand != RG_EMERGENCY) reasons |= RG_R_LATCH;
+    if (final_demand > demand) reasons |= RG_R_LATCH;
     if (mode == RG_INIT) {
         final_demand = RG_EMERGENCY;
         reasons |= RG_R_INIT;
     }
     if (warn) reasons |= RG_R_WARNING;
 
+    /* the remembered obstacle moved for the next period, worst case for the train */
+    if (trk.near != RG_NO_TRACK) {
+        const int64_t near = (int64_t)trk.near - rg_near_travel(speed, err, track_accel, trk.closing_cms,
+                                                                 cfg->period_ms);
+        trk.near = near > 0 ? (int32_t)near : 0;
+    }
+
     error_cycles = (error || stale) ? inc(s->error_cycles) : s->error_cycles;
     s->mode = mode;
     s->node = node;
-    s->latched = latched;
+    s->held = held;
     s->seen = seen;
-    for (m = 0; m < RG_MAX_MODULES; m++) s->disagree[m] = m < modules ? disagree[m] : 0;
+    for (m = 0; m < RG_MAX_MODULES; m++) {
+        s->disagree[m] = m < modules ? disagree[m] : 0;
+        s->agree[m] = m < modules ? agree[m] : 0;
+    }
     s->healthy = healthy;
     s->cycle = inc(s->cycle);
     s->error_cycles = error_cycles;
     s->calm = calm;
+    s->table_held = mode != RG_INIT ? table_demand : RG_MAINTAIN;
+    s->track_near = trk.near;
+    s->track_far = trk.far;
+    s->track_closing = trk.closing_cms;
+    s->track_age_ms = trk.age_ms;
+    s->track_cycles = t_cycles;
+    s->track_absent = t_absent;
 
     out->demand = final_demand;
     out->reasons = reasons;
@@ -897,4 +1269,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     out->cycle = s->cycle;
     out->error_cycles = error_cycles;
     out->warning = warn;
+    out->track_dm = t_dm;
+    out->track_cycles = t_cycles;
+    out->track_state = t_state;
 }

@@ -1,8 +1,9 @@
 /* railguard online core in C99: the same cycle as monitor/core (Python), bit for bit.
  *
- * freshness -> 2oo2 per module -> 3oo3 across modules -> braking curves (EBI, SBI,
- * warning) -> observation -> table -> demand (only ever upwards) -> emergency latch and
- * release. Integers only (DESIGN.md section 4): distance in dm, speed in cm/s,
+ * freshness -> 2oo2 per module -> 3oo3 across modules -> obstacle memory -> braking
+ * curves (EBI, SBI, warning) for the nearer of the voted and the remembered obstacle ->
+ * observation -> table (its demand held while its obstacle is in its zones) -> demand
+ * (only ever upwards) -> hold and release. Integers only (DESIGN.md section 4): distance in dm, speed in cm/s,
  * deceleration in mm/s^2, time in ms ticks; 64-bit intermediates in the curves.
  * No allocation, no I/O, no clock, no floating point. docs/core.md documents the cycle,
  * the modes and the reason bits; docs/fmu.md the C side.
@@ -46,6 +47,18 @@
 #define RG_R_SBI (1 << 10)
 #define RG_R_WARNING (1 << 11)
 #define RG_R_DISPUTE (1 << 12)
+#define RG_R_MEMORY (1 << 13)
+
+/* obstacle memory (monitor/core/memory.py): why the track is what it is this cycle */
+#define RG_TRACK_NONE 0
+#define RG_TRACK_SEEN 1
+#define RG_TRACK_HELD 2
+#define RG_TRACK_CONFIRMING 3
+#define RG_TRACK_FORGOTTEN 4
+#define RG_TRACK_PASSED 5
+#define RG_NO_TRACK (-1)          /* no remembered obstacle */
+#define RG_UNITS_PER_DM 10000     /* track positions in 1e-5 m (cm/s x ms) */
+#define RG_MAX_TRACK (RG_MAX_DISTANCE_DM * RG_UNITS_PER_DM)   /* 6e8: fits int32 */
 
 /* documented input ranges */
 #define RG_MAX_DISTANCE_DM 60000
@@ -121,6 +134,9 @@ typedef struct {
     int32_t recovery_cycles;
     int32_t max_overruns;
     int32_t distance_tolerance_dm; /* 2oo2: PRESENT distances further apart raise the flag */
+    /* obstacle memory */
+    int32_t forget_ms;              /* fresh unanimous ABSENT this long forgets a remembered obstacle */
+    int32_t sensor_range_dm;        /* absence counts as evidence only inside the sensors' declared range */
 } rg_config;
 
 /* A table file's bytes, checked by rg_table_check before the first step. */
@@ -140,14 +156,30 @@ typedef struct {
 typedef struct {
     int32_t mode;
     int32_t node;
-    int32_t latched;
+    int32_t held;         /* the demand level held (0 none, 1 service, 2 emergency) */
     uint32_t seen;        /* bit i: channel i has been fresh at least once */
-    int32_t disagree[RG_MAX_MODULES];
+    int32_t disagree[RG_MAX_MODULES];  /* disagreement cycles not yet cleared by a calm spell */
     int32_t healthy;
     int32_t cycle;
     int32_t error_cycles;
-    int32_t calm;         /* cycles in a row without an emergency cause while one is held */
+    int32_t calm;         /* cycles in a row in which the held demand could have been lowered */
+    int32_t agree[RG_MAX_MODULES];     /* cycles in a row without disagreement (clear `disagree`) */
+    int32_t table_held;   /* the table's demand, held while its obstacle is in the table's zones */
+    int32_t track_near;   /* remembered obstacle, worst case (nearest), 1e-5 m; RG_NO_TRACK if none */
+    int32_t track_far;    /* the remembered position less the train's least travel */
+    int32_t track_closing;  /* the remembered obstacle's own speed towards the train, cm/s (>= 0) */
+    int32_t track_age_ms;   /* age of the report the remembered distance came from */
+    int32_t track_cycles;   /* cycles since the obstacle was last voted */
+    int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
 } rg_state;
+
+/* The remembered obstacle as rg_observe updates it (the track_* fields of rg_state). */
+typedef struct {
+    int32_t near;
+    int32_t far;
+    int32_t closing_cms;
+    int32_t age_ms;
+} rg_track;
 
 typedef struct {
     int32_t demand;
@@ -161,6 +193,9 @@ typedef struct {
     int32_t cycle;
     int32_t error_cycles;
     int32_t warning;      /* obstacle inside the warning curve, or disputed */
+    int32_t track_dm;     /* remembered obstacle's predicted (worst-case) distance; RG_NO_DISTANCE if none */
+    int32_t track_cycles; /* cycles since the remembered obstacle was last voted */
+    int32_t track_state;  /* RG_TRACK_NONE / SEEN / HELD / CONFIRMING / FORGOTTEN / PASSED */
 } rg_outputs;
 
 /* Python's braking.Curves: distances to the obstacle in dm, capped at RG_CURVE_CAP_DM */
@@ -170,6 +205,15 @@ typedef struct {
     int32_t sbi_dm;
     int32_t warning_dm;
 } rg_curve_set;
+
+/* what rg_decide decides in a cycle, before INIT's emergency */
+typedef struct {
+    int32_t env;          /* the curves' demand for the supervised obstacle */
+    int32_t warning;      /* the curves' warning for it */
+    int32_t demand;       /* max(table, curves, error rules) */
+    int32_t calm;         /* the hold's new calm count */
+    int32_t final_demand; /* after the hold: the new held level */
+} rg_decision;
 
 /* one speed band of a brake: from this speed up, this deceleration */
 typedef struct {
@@ -194,14 +238,21 @@ void rg_initial_state(const rg_table *table, const rg_config *cfg, rg_state *sta
 void rg_step(const rg_config *cfg, const rg_table *table, rg_state *state,
              const rg_inputs *inputs, int64_t tick, rg_outputs *out);
 
-/* The pieces, exposed for tests and for the proofs (issues 7 and 11). Each mirrors the
+/* The pieces, exposed for tests and for the proofs (issues 7, 11 and 29). Each mirrors the
  * Python function of the same name: freshness.py, voter.py, braking.py (curves: the
  * EBD, EBI, SBI and warning distances at a measured speed; `service` nonzero: the service
- * brake's, the table's alpha1), envelope.py, config.py (emergency_bands,
+ * brake's, the table's alpha1), envelope.py, memory.py, config.py (emergency_bands,
  * gradient_accel_mms2). rg_age_ms is the age of a fresh report (Python: tick - r.tick),
- * capped at `limit`; rg_latch returns the new latched flag, with the new calm count and
+ * capped at `limit`; rg_hold returns the new held level, with the new calm count and
  * the final demand in its out-parameters; rg_supervision_demand returns the demand, with
- * the warning in `*warning`. */
+ * the warning in `*warning`; rg_supervised_demand is cycle.py's supervision of the voted
+ * and the remembered obstacle (each on its own curves, the higher demand);
+ * rg_decide is the cycle's decision: that demand, combined with the table's and the error
+ * rules' and then held (returns the new held level, the rest in `*d`);
+ * rg_observe updates `*track` in place (Python returns the new tuple); rg_forget takes
+ * the track's least position and the sensor range (Python: in_range and passed, computed
+ * from them in cycle.py), returns the evidence count and writes the track state;
+ * rg_track_dm is memory.distance_dm. */
 int32_t rg_in_range(int32_t status, int32_t distance_dm, int32_t closing_cms, int32_t obstacle);
 int32_t rg_is_fresh(int64_t received, int64_t now, int64_t timeout_ticks);
 int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_ticks);
@@ -230,7 +281,20 @@ int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32
 int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
                               int32_t held, int32_t *warning);
 int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand);
-int32_t rg_latch(int32_t latched, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
-                 int32_t *calm_out, int32_t *final_demand);
+int32_t rg_hold(int32_t level, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
+                int32_t *calm_out, int32_t *final_demand);
+int32_t rg_table_hold(int32_t level, int32_t demand, int32_t speed_cms, int32_t zone_free);
+int32_t rg_supervised_demand(int32_t voted_dm, int32_t voted_ebi_dm, int32_t voted_sbi_dm, int32_t voted_warning_dm,
+                             int32_t remembered, int32_t track_dm, int32_t track_ebi_dm, int32_t track_sbi_dm,
+                             int32_t track_warning_dm, int32_t held, int32_t *warning);
+int64_t rg_accel_run(int64_t accel_mms2, int64_t period_ms);
+int64_t rg_near_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t obstacle_cms,
+                       int64_t period_ms);
+int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t period_ms);
+void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed);
+int32_t rg_forget(int32_t cycles_absent, int32_t evidence, int64_t far, int32_t range_dm, int32_t forget_cycles,
+                  int32_t *state);
+int32_t rg_track_dm(int32_t near);
+int32_t rg_forget_cycles(const rg_config *cfg);
 
 #endif

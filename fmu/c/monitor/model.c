@@ -49,6 +49,9 @@ static void set_outputs_start(ModelData *m)
     m->outputs.cycle = 0;
     m->outputs.error_cycles = 0;
     m->outputs.warning = 0;
+    m->outputs.track_dm = RG_NO_DISTANCE;
+    m->outputs.track_cycles = 0;
+    m->outputs.track_state = RG_TRACK_NONE;
 }
 
 #define SET_START(name, start) m->params.name = (start);
@@ -192,6 +195,9 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     case vr_observation: return m->outputs.observation;
     case vr_cycle: return m->outputs.cycle;
     case vr_error_cycles: return m->outputs.error_cycles;
+    case vr_track_dm: return m->outputs.track_dm;
+    case vr_track_cycles: return m->outputs.track_cycles;
+    case vr_track_state: return m->outputs.track_state;
     case vr_period_ms: return RG_TABLE_PERIOD_MS;
     case vr_table_nodes: return (int32_t)RG_TABLE_NODES;
     default: return 0;

@@ -52,6 +52,8 @@ static void any_config(rg_config *c)
     c->recovery_cycles = Frama_C_interval(1, 100000);
     c->max_overruns = Frama_C_interval(1, 1000);
     c->distance_tolerance_dm = Frama_C_interval(0, 60000);
+    c->forget_ms = Frama_C_interval(1, 600000);
+    c->sensor_range_dm = Frama_C_interval(1, 60000);
 }
 
 static void shipped_table(rg_table *t)

@@ -10,7 +10,7 @@
 #include <stdint.h>
 
 #define MODEL_IDENTIFIER "railguard_train"
-#define INSTANTIATION_TOKEN "{8c4e810f-3df3-4a00-8276-176fa00ae0b6}"
+#define INSTANTIATION_TOKEN "{4b9cae65-a4cc-4688-ac28-c403b5610c64}"
 #define FIXED_STEP 0.01 /* s: internal integration step */
 #define TRAIN_STEP_NS INT64_C(10000000) /* the same in ns: the internal steps start at k * TRAIN_STEP_NS */
 
@@ -70,6 +70,7 @@ typedef struct {
     double obstacle_position; /* m at t = 0 */
     double obstacle_speed;    /* m/s */
     int32_t obstacle_type;
+    double obstacle_leave_time; /* s: off the track from then on (1e9: never) */
     double sensor_range;           /* m */
     double sensor_noise_sigma;     /* m */
     double sensor_miss_probability;

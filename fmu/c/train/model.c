@@ -145,16 +145,23 @@ static double contact_speed(double d0, double v, double a, double t_move, double
     return (v + a * s > 0.0) ? v + a * s : 0.0;
 }
 
-/* true distance at the current time; also detects the collision (returns 1 on contact) */
+/* the obstacle is on the track at the current time: present and not yet left */
+static int obstacle_there(const ModelData *m)
+{
+    return m->obstacle_present && m->time < m->obstacle_leave_time;
+}
+
+/* true distance at the current time; also detects the collision (returns 1 on contact).
+ * A wreck stays where it is; an obstacle that has left is as none. */
 static int update_distance(ModelData *m)
 {
     double obstacle;
-    if (!m->obstacle_present) {
-        m->true_distance = NO_OBSTACLE_DISTANCE;
-        return 0;
-    }
     if (m->collided) {
         m->true_distance = 0.0;
+        return 0;
+    }
+    if (!obstacle_there(m)) {
+        m->true_distance = NO_OBSTACLE_DISTANCE;
         return 0;
     }
     obstacle = m->obstacle_position + m->obstacle_speed * m->time;
@@ -183,7 +190,7 @@ static void update_valid(ModelData *m)
 /* one sensor sample of every channel at the current time */
 static void sample_sensors(ModelData *m)
 {
-    const int visible = m->obstacle_present && m->true_distance > 0.0 &&
+    const int visible = obstacle_there(m) && m->true_distance > 0.0 &&
                         m->true_distance <= m->sensor_range;
     const double closing = m->speed - m->obstacle_speed;
     int c;
@@ -233,8 +240,8 @@ static void sample_sensors(ModelData *m)
             ch->status = 1;
             ch->distance = NAN;
             if (!seen) {
-                ch->closing_speed = m->obstacle_present ? closing : m->speed;
-                ch->type = m->obstacle_present ? m->obstacle_type : 0;
+                ch->closing_speed = obstacle_there(m) ? closing : m->speed;
+                ch->type = obstacle_there(m) ? m->obstacle_type : 0;
             }
         }
     }
@@ -406,6 +413,7 @@ void model_set_start_values(ModelData *m)
     m->obstacle_position = 500.0;
     m->obstacle_speed = 0.0;
     m->obstacle_type = 0;
+    m->obstacle_leave_time = 1e9;
     m->sensor_range = 400.0;
     m->sensor_noise_sigma = 0.3;
     m->sensor_miss_probability = 0.0;
@@ -497,6 +505,8 @@ int model_initialize(ModelData *m, char *msg, size_t len)
         FAIL("obstacle.speed = %g: must be finite", m->obstacle_speed);
     if (m->obstacle_type < 0 || m->obstacle_type > 2)
         FAIL("obstacle.type = %ld: must be 0, 1 or 2", (long)m->obstacle_type);
+    if (isnan(m->obstacle_leave_time) || m->obstacle_leave_time < 0.0)
+        FAIL("obstacle.leave_time = %g: must be >= 0 s (1e9: never)", m->obstacle_leave_time);
     if (bad_nonneg(m->sensor_range))
         FAIL("sensor.range = %g: must be finite and >= 0", m->sensor_range);
     if (bad_nonneg(m->sensor_noise_sigma))
@@ -651,6 +661,7 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_degraded_factor: return m->degraded_factor;
     case vr_obstacle_position: return m->obstacle_position;
     case vr_obstacle_speed: return m->obstacle_speed;
+    case vr_obstacle_leave_time: return m->obstacle_leave_time;
     case vr_sensor_range: return m->sensor_range;
     case vr_sensor_noise_sigma: return m->sensor_noise_sigma;
     case vr_sensor_miss_probability: return m->sensor_miss_probability;
@@ -739,6 +750,7 @@ void model_set_real(ModelData *m, uint32_t vr, double v)
     case vr_degraded_factor: m->degraded_factor = v; break;
     case vr_obstacle_position: m->obstacle_position = v; break;
     case vr_obstacle_speed: m->obstacle_speed = v; break;
+    case vr_obstacle_leave_time: m->obstacle_leave_time = v; break;
     case vr_sensor_range: m->sensor_range = v; break;
     case vr_sensor_noise_sigma: m->sensor_noise_sigma = v; break;
     case vr_sensor_miss_probability: m->sensor_miss_probability = v; break;
