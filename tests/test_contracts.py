@@ -22,7 +22,7 @@ CORE = ROOT / "monitor" / "core"
 EXPECTED = {
     "voter.py": {"vote_2oo2", "disagreement", "distances_disagree", "vote_3oo3", "vote_single"},
     "freshness.py": {"in_range", "is_fresh", "effective_status"},
-    "envelope.py": {"zone", "supervision_demand", "combine", "hold", "table_hold"},
+    "envelope.py": {"zone", "supervision_demand", "combine", "hold", "keep_held", "table_hold"},
     "memory.py": {"accel_run", "near_travel", "far_travel", "observe", "forget", "distance_dm"},
     "braking.py": {"scaled_decel_mms2", "effective_decel_mms2", "run_dm", "speed_after_cms", "band_stop",
                    "obstacle_run_dm"},

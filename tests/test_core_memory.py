@@ -194,3 +194,24 @@ def test_the_table_s_service_is_held_while_its_obstacle_is_in_the_table_s_zones(
     out = d.clear(1000)                                   # the picture leaves the zones: the table lets go
     assert d.state.table_held == MAINTAIN and out.demand == SERVICE     # the hold's confirmation follows
     assert d.clear(0).demand == MAINTAIN                  # standstill lets it go
+
+
+def test_an_obstacle_in_sight_and_closing_keeps_what_is_held_until_it_opens_the_gap():
+    """Issue 29 item 6, the curves' side: a static obstacle in sight that raised an emergency
+    keeps it while it stays in sight and closing, even where the train, slowed, is beyond
+    SBI for it (lowering it would only raise it again nearer: the chatter the FMPy grid
+    showed, 4 changes at 30 m/s); the same obstacle opening the gap (receding) lets the hold
+    go after the confirmation; once keeping, the shrinking zones do not end it."""
+    cfg = Config()
+    d = normal_driver(cfg, M1)
+    c = curves(cfg, V, 0, 0, V, 0)
+    assert d.cycle(present(d.tick, c.ebi_dm, closing=V), V).demand == EMERGENCY
+    slow = 300                                            # 3 m/s: far beyond SBI for the same distance
+    assert curves(cfg, slow, 0, 0, slow, 0).warning_dm < c.ebi_dm - 100
+    for k in range(3 * cfg.release_confirm_cycles):
+        out = d.cycle(present(d.tick, c.ebi_dm - 100, closing=slow), slow)
+        assert out.demand == EMERGENCY and out.reasons & R_LATCH and d.state.kept, k
+    for k in range(cfg.release_confirm_cycles - 1):     # it recedes: the confirmation runs
+        assert d.cycle(present(d.tick, c.ebi_dm - 100, closing=-50), slow).demand == EMERGENCY
+    out = d.cycle(present(d.tick, c.ebi_dm - 100, closing=-50), slow)
+    assert out.demand == MAINTAIN and not d.state.kept

@@ -162,14 +162,16 @@ def directed_inputs(case: Case) -> dict:
     cfg = case.config
     v, confirm, forget, rng_dm = 2000, cfg.release_confirm_cycles, forget_cycles(cfg), cfg.sensor_range_dm
     c = braking.curves(cfg, v, 0, 0, v, 0)
+    # "its cause gone": beyond the warning curve and the table's zones, receding
+    gone_dm = max(c.warning_dm, braking.ebi_dm(cfg, v, 0, 0, v, 0, service=True) + cfg.warning_margin_dm) + 1
     blind = [(False, 0)] * (forget + confirm + 2)
     rows = []
     for gone in (confirm - 1, confirm, confirm + 1):
-        rows.append([(True, c.ebi_dm)] * 2 + [(True, c.warning_dm + 1)] * gone + [(True, c.ebi_dm)] * 2)
+        rows.append([(True, c.ebi_dm)] * 2 + [(True, gone_dm)] * gone + [(True, c.ebi_dm)] * 2)
     rows.append([(True, c.ebi_dm), (True, c.ebi_dm + 1), (True, c.sbi_dm), (True, c.sbi_dm + 1)]
-                + [(True, c.warning_dm + 1)] * (confirm + 1) + [(True, c.warning_dm)])
+                + [(True, gone_dm)] * (confirm + 1) + [(True, c.warning_dm)])
     rows.append([(True, c.ebi_dm)] * 2 + blind)
-    rows.append([(True, c.ebi_dm)] * 2 + [(False, 0)] * (forget - 1) + [(True, c.warning_dm + 1)] * 2)
+    rows.append([(True, c.ebi_dm)] * 2 + [(False, 0)] * (forget - 1) + [(True, gone_dm)] * 2)
     rows.append([(True, rng_dm)] * 2 + blind)
     rows.append([(True, rng_dm + 1)] * 2 + blind)
     rows.append([(True, 10)] * 2 + blind)
@@ -179,13 +181,18 @@ def directed_inputs(case: Case) -> dict:
     rows = [r + [(False, 0)] * (steps - len(r)) for r in rows]
     present = np.array([[p for p, _ in r] for r in rows]).T
     dist = np.array([[x for _, x in r] for r in rows], dtype=np.int64).T
-    return {"present": present, "distance_dm": dist, "speed_cms": np.tile(np.array(speeds, dtype=np.int64), (steps, 1))}
+    speed = np.tile(np.array(speeds, dtype=np.int64), (steps, 1))
+    # static obstacles close at the train's speed; "gone" ones recede at 1 m/s (an obstacle in
+    # sight and closing keeps what is held: envelope.keep_held)
+    closing = np.where(dist == gone_dm, -100, speed)
+    return {"present": present, "distance_dm": dist, "speed_cms": speed, "closing_cms": closing}
 
 
 @pytest.mark.parametrize("case", [c for c in CASES if c.table == "never"], ids=lambda c: c.name)
 def test_release_after_exactly_the_confirmation(case):
     """Directed sequences: twin == core, and the core releases on the confirm-th calm cycle
-    (revocable) or never while moving (held), and holds inside SBI."""
+    (revocable) or never while moving (held), holds inside SBI, and keeps what it holds while
+    a static obstacle is in sight in the table's zones (envelope.keep_held)."""
     setup = _setup(case)
     trace = fc.twin_trace(setup, directed_inputs(case))
     bad, _ = fc.first_mismatch(setup, trace, trace["present"].shape[1])
@@ -195,9 +202,9 @@ def test_release_after_exactly_the_confirmation(case):
     revocable = case.config.emergency_release == 1
     assert (demand[:2 + confirm - 1, 0] == EMERGENCY).all()                  # gone confirm - 1 cycles: held
     assert (demand[2 + confirm - 1, 1] == EMERGENCY) != revocable             # gone confirm cycles: released
-    assert (demand[:3, 3] == EMERGENCY).all()                                # inside SBI while held: emergency
-    assert (demand[3:3 + confirm - 1, 3] == EMERGENCY).all()                 # beyond SBI, fewer than confirm cycles
-    assert (demand[3 + confirm - 1, 3] == EMERGENCY) != revocable             # beyond SBI, confirm cycles
+    assert (demand[:4, 3] == EMERGENCY).all()      # inside SBI while held; beyond it, static, in sight, closing: kept
+    assert (demand[4:4 + confirm - 1, 3] == EMERGENCY).all()                 # beyond the zones, fewer than confirm cycles
+    assert (demand[4 + confirm - 1, 3] == EMERGENCY) != revocable             # beyond the zones, confirm cycles
 
 
 @pytest.mark.parametrize("case", [c for c in CASES if c.table == "never"], ids=lambda c: c.name)

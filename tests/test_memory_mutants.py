@@ -1,1 +1,262 @@
-"""placeholder"""
+"""The obstacle memory's exact boundaries (issue 29 item 7: mutation testing of the new code).
+
+Mutation testing (`python -m verification.mutation --scope memory.py envelope.py:hold
+envelope.py:table_hold cycle.py ...`) found behaviours of the obstacle memory, the holds and
+the new parts of the cycle that tests/test_core_memory.py let change unnoticed, mostly
+because its expectations were computed with the core's own constants and helpers
+(UNITS_PER_DM, near_travel) or allowed a tolerance: the unit of a position, the rounding of
+the prediction, the sensor range and the passed position at exactly their edges, the
+remembered obstacle's own speed and the train's share of a closing speed, the warning of
+the remembered and of the voted obstacle, what is kept of a forgotten track, and the
+defaults. Each test pins one such behaviour with values written out (positions in 1e-5 m,
+the unit of cm/s x ms) or computed here from the braking curves, which these mutants leave
+alone; everything runs through the real core: memory.py's functions directly against their
+documented contracts, and whole cycles through `create`/`step`.
+"""
+from __future__ import annotations
+
+import pytest
+
+from monitor.core.braking import curves
+from monitor.core.config import Config, forget_cycles
+from monitor.core.cycle import initial_state, step
+from monitor.core.memory import accel_run, far_travel, forget, near_travel, observe
+from monitor.core.types import (
+    DEGRADED, EMERGENCY, INIT, MAINTAIN, NORMAL, PRESENT, R_MEMORY, SERVICE, STATIC, TRACK_CONFIRMING,
+    TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED, TRACK_SEEN, Inputs, Report, State, Train,
+)
+from tests.test_core_cycle import clear, normal_driver, present, with_channel
+
+U = 10000                 # 1e-5 m per dm (memory.UNITS_PER_DM), written out
+V = 3000                  # 30 m/s
+# the default declaration: speed error 20 per mille, traction 500 + 20 per mille downhill
+# (9810 * 20 / 1000 = 196.2, rounded up to 197) = 697 mm/s^2
+ERR, ACCEL = 20, 697
+# a declaration whose prediction is exact to the unit: no speed error, 198 mm/s^2 of
+# traction on the level: a T^2 / 2 = 198 * 100^2 / 20000 = 99 units per cycle
+EXACT = dict(speed_error_permille=0, max_accel_mms2=198, max_gradient_permille=0)
+
+
+def travel(speed: int, obstacle: int, err: int = ERR, accel: int = ACCEL, period: int = 100) -> int:
+    """What the gap can shrink in one period, worst case, computed here: the speed plus its
+    error rounded up, a T^2 / 2 rounded up, the obstacle's own speed."""
+    v_max = -(-speed * (1000 + err) // 1000)
+    return v_max * period + -(-accel * period * period // 20000) + obstacle * period
+
+
+# --------------------------------------------------------------------------- memory.py, directly
+
+
+def test_accel_run_is_a_t2_over_2_in_1e5_m_rounded_up():
+    """mm/s^2 x ms^2 / 20000 = 1e-5 m, rounded up: exactly 250 units for 500 mm/s^2 over
+    100 ms, 1 for the least acceleration over 1 ms, and the exact quotient when it is one."""
+    assert accel_run(0, 100) == 0
+    assert accel_run(500, 100) == 250
+    assert accel_run(697, 100) == 349          # 348.5 rounded up
+    assert accel_run(198, 100) == 99
+    assert accel_run(1, 1) == 1
+    assert accel_run(401, 1000) == 20050       # 401e6 / 20000 exactly (/ 20001 would give 20049)
+
+
+def test_near_travel_is_the_speed_plus_its_error_rounded_up_plus_acceleration_plus_the_obstacle():
+    assert near_travel(0, 0, 0, 0, 100) == 0
+    assert near_travel(1, 1, 0, 0, 1) == 2                          # 1.001 cm/s rounded up to 2
+    assert near_travel(12000, 500, 0, 0, 100) == 1800000            # 18000 cm/s for 100 ms
+    assert near_travel(1000, 20, 500, 300, 100) == 102000 + 250 + 30000
+    assert near_travel(V, ERR, ACCEL, 60, 100) == 306000 + 349 + 6000
+
+
+def test_far_travel_is_the_speed_less_its_error_rounded_down_less_acceleration_never_below_0():
+    assert far_travel(12000, 0, 0, 100) == 1200000
+    assert far_travel(1000, 20, 500, 100) == 98000 - 250
+    assert far_travel(1, 0, 198, 100) == 1                          # 100 - 99: the least positive run
+    assert far_travel(1, 0, 500, 100) == 0                          # 100 - 250 < 0: nothing
+    assert far_travel(0, 0, 0, 100) == 0
+    assert far_travel(0, 20, 697, 100) == 0
+
+
+def test_observe_keeps_positions_in_1e5_m_and_the_obstacle_s_own_speed_from_1_cms():
+    # confirmed: 300 dm is 3,000,000 units; an obstacle closing at 1 cm/s keeps its 1 cm/s
+    assert observe(5000000, 5000000, 0, 0, 300, 1, 40, True) == (3000000, 3000000, 1, 40)
+    assert observe(-1, -1, 0, 0, 300, 0, 40, True) == (3000000, 3000000, 0, 40)
+    assert observe(-1, -1, 0, 0, 300, -5, 40, True) == (3000000, 3000000, 0, 40)    # receding: taken to stop
+    # disputed without a track: nothing is remembered, not even a speed or an age
+    assert observe(-1, -1, 0, 0, 100, 50, 7, False) == (-1, -1, 0, 0)
+    # disputed exactly at the remembered position: the track takes the sighting (its age, and
+    # its far end, which the train's least travel had moved)
+    assert observe(3000000, 3000050, 20, 100, 300, 0, 300, False) == (3000000, 3000000, 20, 300)
+    # disputed and farther: kept, the faster closing speed of the two
+    assert observe(3000000, 3000050, 20, 100, 301, 30, 300, False) == (3000000, 3000050, 30, 100)
+
+
+def test_forget_leaves_no_evidence_count_behind_when_the_track_goes():
+    assert forget(3, True, True, True, 5) == (0, TRACK_PASSED)
+    assert forget(4, True, True, False, 5) == (0, TRACK_FORGOTTEN)
+    assert forget(3, True, True, False, 5) == (4, TRACK_CONFIRMING)
+    assert forget(3, False, True, False, 5) == (0, TRACK_HELD)
+
+
+# --------------------------------------------------------------------------- through the cycle
+
+
+def test_a_static_obstacle_is_remembered_with_the_train_s_speed_error_as_its_own_speed():
+    """The train's share of a closing speed is its speed less the speed error (3000 cm/s
+    reads 2940 at 20 per mille), so a static obstacle reported closing at the train's 3000
+    cm/s is remembered closing at 60 cm/s of its own; the prediction moves it 312,349 units
+    (31.2 dm) a cycle at 30 m/s."""
+    d = normal_driver(Config())
+    out = d.cycle(present(d.tick, 3000, closing=V), V)
+    assert out.track_state == TRACK_SEEN and out.track_dm == 3000
+    assert d.state.track_closing == 60 and d.state.track_age_ms == 0
+    assert travel(V, 60) == 312349
+    assert d.state.track_near == 3000 * U - 312349 and d.state.track_far == 3000 * U
+    out = d.clear(V)
+    assert out.track_dm == 2968 and out.track_state == TRACK_CONFIRMING        # 2968.77 dm, rounded down
+    assert d.state.track_near == 3000 * U - 2 * 312349
+    assert d.state.track_far == 3000 * U - (2940 * 100 - 349)                  # the train's least travel
+
+
+def test_a_remembered_position_is_predicted_to_the_unit():
+    """No speed error, 198 mm/s^2 on the level, 99 cm/s, a static obstacle 1 dm ahead: the
+    worst case moves it 9900 + 99 units in a cycle, so 1 unit of the 10,000 remains; an
+    obstacle at 0 dm stays at 0 (never below)."""
+    d = normal_driver(Config(**EXACT))
+    out = d.cycle(present(d.tick, 1, closing=99), 99)
+    assert out.track_dm == 1 and d.state.track_closing == 0
+    assert d.state.track_near == 1
+    d = normal_driver(Config())
+    out = d.cycle(present(d.tick, 0, closing=V), V)
+    assert out.track_dm == 0 and d.state.track_near == 0
+
+
+def test_absence_counts_as_evidence_exactly_up_to_the_declared_sensor_range():
+    """The defaults (sensor_range_dm = 4000): a standing train's remembered obstacle at
+    exactly 400.0 m is inside the range (evidence counts: confirming), at 400.1 m it is not
+    (held)."""
+    cfg = Config()
+    assert cfg.sensor_range_dm == 4000
+    d = normal_driver(cfg)
+    d.present(4000, 0)
+    out = d.clear(0)
+    assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 4000 * U and d.state.track_absent == 1
+    d = normal_driver(cfg)
+    d.present(4001, 0)
+    out = d.clear(0)
+    assert out.track_state == TRACK_HELD and d.state.track_far == 4001 * U and d.state.track_absent == 0
+
+
+def test_passed_is_beyond_the_remembered_position_by_at_least_one_unit():
+    """An obstacle at 0 dm and a standing train: the least travel is 0 and the position is
+    reached, not passed (evidence counts). With a least travel of exactly 1 unit (1 cm/s,
+    no speed error, 99 units explained by acceleration) it is passed after one cycle."""
+    d = normal_driver(Config())
+    d.present(0, 0)
+    out = d.clear(0)
+    assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 0
+    d = normal_driver(Config(**EXACT))
+    d.present(0, 1)
+    out = d.clear(1)
+    assert out.track_state == TRACK_PASSED and out.track_dm == 65535
+
+
+def test_an_invalid_train_state_moves_nothing_towards_passed():
+    """The train state is read to the safe side for the curves (top speed), but what
+    "passed" is judged on is the least travel: an invalid speed is taken as none at all,
+    not even 1 cm/s (here, with no speed error and no acceleration, 1 cm/s would pass an
+    obstacle at 0 dm in one cycle)."""
+    d = normal_driver(Config(speed_error_permille=0, max_accel_mms2=0, max_gradient_permille=0))
+    d.present(0, 0)
+    for _ in range(3):
+        out = d.cycle(clear(d.tick), train=Train(-1))
+        assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 0
+
+
+def test_a_forgotten_or_passed_track_leaves_no_speed_or_age_behind():
+    """An oncoming obstacle (its own 2000 cm/s) from a report 100 ms old, forgotten after
+    one cycle of evidence (forget_ms = 100): the state keeps no closing speed and no age."""
+    d = normal_driver(Config(forget_ms=100))
+    reports = tuple(Report(PRESENT, 1000, 2000, STATIC, d.tick - 100) for _ in range(6))
+    d.cycle(reports, 0)
+    assert d.state.track_closing == 2000 and d.state.track_age_ms == 100
+    out = d.clear(0)
+    assert out.track_state == TRACK_FORGOTTEN
+    assert (d.state.track_near, d.state.track_far, d.state.track_closing, d.state.track_age_ms) == (-1, -1, 0, 0)
+    d = normal_driver(Config(**EXACT))
+    d.cycle(tuple(Report(PRESENT, 0, 500, STATIC, d.tick - 100) for _ in range(6)), 1)
+    assert d.state.track_closing == 499 and d.state.track_age_ms == 100
+    assert d.clear(1).track_state == TRACK_PASSED
+    assert (d.state.track_near, d.state.track_far, d.state.track_closing, d.state.track_age_ms) == (-1, -1, 0, 0)
+
+
+def test_the_remembered_obstacle_is_supervised_with_its_own_speed_plus_the_train_s():
+    """An oncoming obstacle (reported closing at 5000 cm/s, the train at 3000: 2060 cm/s of
+    its own) seen just beyond EBI (service), then every channel blind: its curves use the
+    closing speed 2060 + 2940 = 5000 again, and one cycle's prediction takes it inside EBI:
+    emergency on the remembered obstacle alone."""
+    cfg = Config()
+    c = curves(cfg, V, 0, 0, 5000, 0)
+    first = c.ebi_dm + 40
+    d = normal_driver(cfg)
+    out = d.cycle(present(d.tick, first, closing=5000), V)
+    assert out.demand == SERVICE and d.state.track_closing == 2060
+    out = d.clear(V)
+    t_dm = (first * U - travel(V, 2060)) // U
+    assert out.track_dm == t_dm and t_dm <= c.ebi_dm
+    assert out.demand == EMERGENCY and out.reasons & R_MEMORY
+
+
+def test_a_blind_remembered_obstacle_inside_its_warning_curve_warns():
+    """Every channel blind, the remembered obstacle exactly on its warning curve (beyond
+    SBI): no demand, but the warning."""
+    cfg = Config()
+    c = curves(cfg, V, 0, 0, V, 0)                 # 60 cm/s of its own + the train's 2940
+    first = c.warning_dm + 32                      # one cycle's prediction: 31.2 dm
+    d = normal_driver(cfg)
+    out = d.cycle(present(d.tick, first, closing=V), V)
+    assert not out.warning
+    out = d.clear(V)
+    assert out.track_dm == c.warning_dm > c.sbi_dm
+    assert out.warning and out.demand == MAINTAIN and out.reasons & R_MEMORY
+
+
+def test_the_voted_obstacle_warns_even_when_the_nearer_remembered_one_does_not():
+    """A picture with a stale channel (a system error, not a dispute: no forced warning)
+    whose obstacle is farther than the remembered one, from reports 300 ms old (the
+    timeout: still fresh), is inside its own warning curve; the remembered obstacle, from a
+    fresh report, is just beyond its own: the voted obstacle's warning counts."""
+    cfg = Config()
+    remembered = curves(cfg, V, 0, 0, V, 0)
+    voted = curves(cfg, V, 0, 0, V, 300)
+    d = normal_driver(cfg)
+    d.cycle(present(d.tick, remembered.warning_dm + 33, closing=V), V)
+    old = tuple(Report(PRESENT, voted.warning_dm, V, STATIC, d.tick - 300) for _ in range(6))
+    out = d.cycle(with_channel(old, 5, Report(DEGRADED, 0, 0, STATIC, d.tick)), V)
+    assert out.distance_dm == voted.warning_dm and out.track_dm == remembered.warning_dm + 1
+    assert out.system_error and out.reasons & R_MEMORY
+    assert out.warning
+
+
+def test_a_state_without_agreement_counts_starts_them_at_0():
+    """A State built without the per-module agreement counts (nine fields, as the exhaustive
+    table tests build them) starts them at 0: one calm cycle makes them 1, which does not yet
+    clear a disagreement count with persistence_cycles = 2."""
+    cfg = Config(persistence_cycles=2)
+    d = normal_driver(cfg)
+    state = State(NORMAL, d.state.node, MAINTAIN, d.setup.all_seen, (1, 1, 1), 0, 0, 0, 0)
+    state, _ = step(d.setup, state, Inputs(clear(d.tick), Train(0)), d.tick)
+    assert state.agree == (1, 1, 1) and state.disagree == (1, 1, 1)
+
+
+def test_the_initial_state_remembers_nothing():
+    d = normal_driver(Config())
+    start = d.setup.table.start
+    assert tuple(initial_state(d.setup)) == (INIT, start, MAINTAIN, 0, (0, 0, 0), 0, 0, 0, 0, (0, 0, 0),
+                                             0, -1, -1, 0, 0, 0, 0, False)
+
+
+def test_the_memory_defaults_are_the_documented_ones():
+    """docs/core.md: forget_ms 7500 (75 cycles of 100 ms), sensor_range_dm 4000."""
+    cfg = Config()
+    assert (cfg.forget_ms, cfg.sensor_range_dm) == (7500, 4000)
+    assert forget_cycles(cfg) == 75
+

@@ -218,6 +218,7 @@ class VectorMonitor:
         self.track_age = np.zeros(n, dtype=I64)
         self.track_cycles = np.zeros(n, dtype=I64)
         self.track_absent = np.zeros(n, dtype=I64)
+        self.kept = np.zeros(n, dtype=bool)
         self.m2 = setup.model == "m2"
 
     def _memory(self, present, dist, speed, toward, own, age) -> tuple:
@@ -291,8 +292,11 @@ class VectorMonitor:
         table = table_hold(self.table_held, action, speed, zone == 0)     # the voted picture's zone
         self.table_held = table
         demand = np.maximum(table, env)
-        self.held, self.calm, final = hold(self.held, self.calm, demand, speed,
+        keep = present & ((zone != 0) | self.kept) & (toward > 0) & (speed > 0)      # envelope.keep_held
+        asked = np.where(keep, np.maximum(demand, self.held), demand)
+        self.held, self.calm, final = hold(self.held, self.calm, asked, speed,
                                            cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
+        self.kept = keep & (self.held > MAINTAIN)
         self.applied = final
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
                    | np.where(env == SERVICE, R_SBI, 0) | np.where(final > demand, R_LATCH, 0)

@@ -15,7 +15,7 @@ from . import config as config_mod
 from .config import Config, ConfigurationError
 from .braking import curves, ebi_dm
 from .config import RELEASE_REVOCABLE, forget_cycles, gradient_accel_mms2
-from .envelope import combine, hold, supervision_demand, table_hold, zone
+from .envelope import combine, hold, keep_held, supervision_demand, table_hold, zone
 from .freshness import channel_status
 from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
 from .observation import OBSERVATIONS, m2_observation, speed_class
@@ -270,8 +270,13 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         error_demand = EMERGENCY
         reasons |= R_SAFE_STOP | (R_PERCEPTOR if perceptor else 0) | (R_DEADLINE if overrun_limit else 0)
     demand = combine(table_demand, env, error_demand)
-    held, calm, final = hold(state.held, state.calm, demand, speed, cfg.emergency_release == RELEASE_REVOCABLE,
-                             cfg.release_confirm_cycles)
+    # an obstacle in sight and closing in, in the table's zones when the keeping began, keeps
+    # what is held: lowering it now would only raise it again nearer (issue 29 item 6: a clean
+    # stop or a clean release); the zones shrink with the speed, so once keeping it stays
+    # until the obstacle is out of sight, opens the gap, or the train stands
+    keep = distance != NO_DISTANCE and toward > 0 and (z != 0 or state.kept)
+    held, calm, final = hold(state.held, state.calm, keep_held(demand, state.held, speed, keep), speed,
+                             cfg.emergency_release == RELEASE_REVOCABLE, cfg.release_confirm_cycles)
     if final > demand:
         reasons |= R_LATCH
     if mode == INIT:
@@ -287,7 +292,8 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         near -= near_travel(speed, err, setup.track_accel, t_closing, cfg.period_ms)
         near = near if near > 0 else 0
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
-                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_age, t_cycles, t_absent)
+                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_age, t_cycles, t_absent,
+                      keep and speed > 0 and held > MAINTAIN)
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state)
     return new_state, out

@@ -84,6 +84,20 @@ def hold(level: int, calm: int, demand: int, speed_cms: int, revocable: bool, co
     return level, calm + 1, level
 
 
+def keep_held(demand: int, level: int, speed_cms: int, keep: bool) -> int:
+    """What the hold is asked for: the causes' demand, or, while `keep` (an obstacle in sight,
+    in the table's zones, closing in) and the train moves, at least the level held, so that
+    nothing is lowered only to be raised again nearer the obstacle.
+
+    pre: 0 <= demand <= 2 and 0 <= level <= 2 and speed_cms >= 0
+    post: __return__ >= demand
+    post: __return__ in (demand, level)
+    post: not (keep and speed_cms > 0) or __return__ >= level
+    post: (keep and speed_cms > 0) or __return__ == demand
+    """
+    return level if keep and speed_cms > 0 and demand < level else demand
+
+
 def table_hold(level: int, demand: int, speed_cms: int, zone_free: bool) -> int:
     """The table's demand after its hold: what the table raised is lowered only once the
     voted picture has left the table's zones (`zone_free`: observed zone 0), or at

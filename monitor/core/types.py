@@ -99,6 +99,7 @@ class State(NamedTuple):
     track_age_ms: int = 0        # age of the report the remembered distance came from
     track_cycles: int = 0        # cycles since the obstacle was last voted
     track_absent: int = 0        # cycles in a row of positive evidence that it is gone
+    kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)
 
     @property
     def latched(self) -> bool:

@@ -59,6 +59,9 @@ def child(job, out):
     log = os.open(job["log"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(log, 1)
     os.dup2(log, 2)
+    # the repository first on the path, as for `python -m pytest` run from it: test modules
+    # import helpers from other test modules (`from tests.test_core_cycle import ...`)
+    sys.path.insert(0, job["root"])
     if job.get("c_source"):
         # a C mutant: the FMUs the comparison test builds are built from a copy of fmu/c
         # whose rg_core.c is the mutant; one that does not compile is stillborn

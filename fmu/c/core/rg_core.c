@@ -261,6 +261,7 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->track_age_ms = 0;
     s->track_cycles = 0;
     s->track_absent = 0;
+    s->kept = 0;
 }
 
 /* config.py's forget_cycles: cycles of evidence that make forget_ms, rounded up (never
@@ -778,17 +779,21 @@ int32_t rg_table_hold(int32_t level, int32_t demand, int32_t speed_cms, int32_t 
     ensures voted_dm != 65535 && voted_dm <= voted->ebi_dm ==> d->env == 2 && d->final_demand >= 2;
     ensures level == 2 && voted_dm != 65535 && voted_dm <= voted->sbi_dm ==> d->env == 2 && d->final_demand >= 2;
     ensures d->final_demand < level ==> speed_cms <= 0 || calm + 1 >= confirm;
+    ensures keep != 0 && speed_cms > 0 && level <= 2 ==> d->final_demand >= level;
     ensures d->final_demand == level || d->final_demand == d->demand;
     ensures d->calm < confirm;
 */
 int32_t rg_decide(int32_t voted_dm, const rg_curve_set *voted, int32_t track_sup, int32_t track_dm,
                   const rg_curve_set *remembered, int32_t table_demand, int32_t error_demand, int32_t level,
-                  int32_t calm, int32_t speed_cms, int32_t revocable, int32_t confirm, rg_decision *d)
+                  int32_t calm, int32_t speed_cms, int32_t revocable, int32_t confirm, int32_t keep, rg_decision *d)
 {
+    int32_t asked;
     d->env = rg_supervised_demand(voted_dm, voted->ebi_dm, voted->sbi_dm, voted->warning_dm, track_sup, track_dm,
                                   remembered->ebi_dm, remembered->sbi_dm, remembered->warning_dm, level, &d->warning);
     d->demand = rg_combine(table_demand, d->env, error_demand);
-    return rg_hold(level, calm, d->demand, speed_cms, revocable, confirm, &d->calm, &d->final_demand);
+    /* envelope.keep_held: an obstacle in sight, in the table's zones, closing in keeps what is held */
+    asked = keep && speed_cms > 0 && d->demand < level ? level : d->demand;
+    return rg_hold(level, calm, asked, speed_cms, revocable, confirm, &d->calm, &d->final_demand);
 }
 
 /* ---- obstacle memory (memory.py): positions in 1e-5 m, the unit of cm/s x ms ---------- */
@@ -1019,7 +1024,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, keep;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
     int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
@@ -1202,8 +1207,12 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     error_demand = RG_MAINTAIN;
     if (error && !dispute && mode != RG_INIT) error_demand = cfg->safe_reaction;  /* INIT: covered below, unheld */
     if (mode == RG_SAFE_STOP) error_demand = RG_EMERGENCY;
+    /* envelope.keep_held: an obstacle in sight and closing in, in the table's zones when the
+     * keeping began, keeps what is held (until out of sight, opening, or standstill) */
+    keep = present && toward > 0 && (z != 0 || s->kept != 0);
     held = rg_decide(distance, &curve, remembered, t_dm, &tcurve, table_demand, error_demand, s->held, s->calm, speed,
-                     cfg->emergency_release == RG_RELEASE_REVOCABLE, cfg->release_confirm_cycles, &dec);
+                     cfg->emergency_release == RG_RELEASE_REVOCABLE, cfg->release_confirm_cycles,
+                     keep, &dec);
     env = dec.env;
     warn = dec.warning;
     demand = dec.demand;
@@ -1257,6 +1266,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->track_age_ms = trk.age_ms;
     s->track_cycles = t_cycles;
     s->track_absent = t_absent;
+    s->kept = keep && speed > 0 && held > RG_MAINTAIN;
 
     out->demand = final_demand;
     out->reasons = reasons;

@@ -171,6 +171,7 @@ typedef struct {
     int32_t track_age_ms;   /* age of the report the remembered distance came from */
     int32_t track_cycles;   /* cycles since the obstacle was last voted */
     int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
+    int32_t kept;           /* an obstacle in sight and closing keeps what is held (keep_held) */
 } rg_state;
 
 /* The remembered obstacle as rg_observe updates it (the track_* fields of rg_state). */
