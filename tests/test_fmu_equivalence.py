@@ -614,6 +614,40 @@ def test_a_known_blindness_goes_through_every_track_state(monitor_drivers):
     _check(monitor_drivers[("m1", 2)], table, params, steps)
 
 
+# (parameters, obstacle dm, train cm/s, reported closing cm/s, [(track_dm, track_state)] of the
+# cycle that sees the obstacle and of the blind cycle after it)
+ROUNDING_STORIES = (
+    # the speed plus its error rounded up: 1 cm/s at 1 per mille is 2 cm/s, so the worst case
+    # moves the obstacle (99 cm/s of its own) 200 + 9900 units: just over 1 dm
+    ({"speed_error_permille": 1, "max_accel_mms2": 0, "max_gradient_permille": 0}, 1000, 1, 99,
+     [(1000, TRACK_SEEN), (998, TRACK_CONFIRMING)]),
+    # the speed less its error rounded down, exactly: 1000 cm/s for 100 ms reaches an obstacle
+    # 10 dm ahead (the position left is 0: reached, not passed)
+    ({"speed_error_permille": 0, "max_accel_mms2": 0, "max_gradient_permille": 0}, 10, 1000, 1000,
+     [(10, TRACK_SEEN), (0, TRACK_CONFIRMING)]),
+    # a least travel of exactly 1 unit (100 units at 1 cm/s, 99 explained by 198 mm/s^2):
+    # an obstacle at 0 dm is passed after one cycle
+    ({"speed_error_permille": 0, "max_accel_mms2": 198, "max_gradient_permille": 0}, 0, 1, 1,
+     [(0, TRACK_SEEN), (NO_DISTANCE, TRACK_PASSED)]),
+)
+
+
+def test_the_memory_s_roundings_agree_to_the_unit(monitor_drivers):
+    """Guard against a generator that seldom lands on the prediction's roundings (mutation
+    testing of the C core, issue 29 item 7): each story (ROUNDING_STORIES) is an obstacle
+    seen by every channel and then a blind cycle whose remembered position one unit or one
+    rounding decides; compared step by step, after the reference shows the edge is hit."""
+    table = read("m1")
+    for params, dm, speed, closing, want in ROUNDING_STORIES:
+        seen = ChannelInput(1, metres(dm), closing_mps(closing), 0, True)
+        steps = [(StepInput((CLEAR,) * 6, 0.0), 1), (StepInput((seen,) * 6, speed_mps(speed)), 1),
+                 (StepInput((CLEAR,) * 6, speed_mps(speed)), 1)]
+        ref = MonitorReference(table, params)
+        outs = [ref.step(inp, c)[-1] for inp, c in steps]
+        assert [(o.track_dm, o.track_state) for o in outs[1:]] == want, params
+        _check(monitor_drivers[("m1", 2)], table, params, steps)
+
+
 def test_a_known_sequence_goes_through_every_mode(monitor_drivers):
     """Guard against a generator that never leaves INIT: one hand-written story compared
     step by step, which must visit NORMAL, DEGRADED and SAFE_STOP."""

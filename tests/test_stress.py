@@ -203,3 +203,20 @@ def test_railguard_stress_quick_finds_a_failure_that_replays(tmp_path):
     assert rare["ci95"][0] <= rare["p_importance_sampling"] <= rare["ci95"][1] and rare["ci95"][1] > 0.0
     assert "equally weighted failures" in st.render(out)
     assert (tmp_path / "stress.json").is_file() and (tmp_path / "stress-m2-edge-30.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_likeliest_failure_is_classified_as_issue_29_asks():
+    """verify's check: unsurvivable (blind from the appearance, nothing else), beyond the
+    forgetting time (and less likely than the old -9.65), or survivable (a defect)."""
+    from verification.stress.part import failure_class
+
+    cfg = Config()
+    def failure(cycles, ll, extra=()):
+        return {"events": [{"kind": "blind", "cycle": c} for c in cycles] + list(extra), "log_likelihood": ll}
+    assert failure_class(None, cfg) == "none found"
+    assert failure_class(failure(range(9), -9.36), cfg).startswith("unsurvivable")
+    assert failure_class(failure(range(2, 13), -11.87), cfg) == "survivable"            # seen twice, then 1.1 s blind
+    assert failure_class(failure(range(9), -9.36, [{"kind": "miss", "cycle": 3}]), cfg) == "survivable"
+    assert failure_class(failure(range(30, 30 + 75), -16.0), cfg).startswith("beyond the forgetting time")
+    assert failure_class(failure(range(30, 30 + 75), -9.0), cfg) == "survivable"        # likelier than before
+    assert failure_class(failure(range(30, 30 + 74), -16.0), cfg) == "survivable"       # 7.4 s < forget_ms

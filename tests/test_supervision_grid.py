@@ -82,11 +82,12 @@ def test_no_collision_in_the_grid(curves_loop):
 
 @pytest.mark.parametrize("table", ["m1", "m2"])
 def test_the_shipped_tables_keep_the_hardest_trains_safe(table, monitor_fmus, train_fmu):
-    """The tables only add braking: with m1 or m2 in the loop, the guaranteed-deceleration
-    half of the grid at the declared build-up stays free of collisions too."""
-    worlds = [w for w in acc.grid_worlds(VALUES) if w.bands[0][1] == 2.4 and w.traction_s > 0]
+    """The tables only add braking: with m1 or m2 in the loop, the whole grid (2592 runs,
+    slippery and degraded included) stays free of collisions too, and every encounter ends
+    with at most 2 demand changes (issue 29 item 6; measured: 1296 runs with 1, 1296 with 2)."""
     with cosim.Loop(monitor_fmus[(table, 2)], train_fmu) as loop:
-        outcomes, _ = acc.run_cases(loop, PARAMS, acc.cases(CFG, worlds))
+        outcomes, _ = acc.run_cases(loop, PARAMS, acc.grid_cases(VALUES))
+    assert len(outcomes) == 2592
     assert acc.summary(outcomes)["collisions"] == 0
     chatter = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.demand_changes)
                for o in outcomes if o.demand_changes > 2]

@@ -18,6 +18,29 @@ from .encounters import NOISE_SIGMA_M
 from .importance import NO_FAILURE, W_MAX
 
 
+OLD_LIKELIEST = -9.65     # the likeliest failure before the obstacle memory (a 1.2 s blackout during braking)
+
+
+def failure_class(failure: Optional[dict], cfg: Config) -> str:
+    """What the likeliest failure is (issue 29 item 8): 'none found'; 'unsurvivable' (every
+    channel blind from the appearance on, and nothing else: no monitor brakes for what no
+    channel has seen); 'beyond the forgetting time' (a blindness at least forget_ms long, less
+    likely than the failure found before the memory); or 'survivable' (a defect)."""
+    if failure is None:
+        return "none found"
+    blind = sorted(e["cycle"] for e in failure["events"] if e["kind"] == "blind")
+    others = [e for e in failure["events"] if e["kind"] not in ("blind", "noise")]
+    if blind and blind[0] == 0 and blind == list(range(len(blind))) and not others:
+        return f"unsurvivable: every channel blind from the appearance for {len(blind)} cycles"
+    longest, run = 0, 0
+    for a, b in zip([None] + blind, blind):
+        run = run + 1 if a is not None and b == a + 1 else 1
+        longest = max(longest, run)
+    if longest * cfg.period_ms >= cfg.forget_ms and failure["log_likelihood"] < OLD_LIKELIEST:
+        return f"beyond the forgetting time: blind for {longest * cfg.period_ms / 1000:g} s"
+    return "survivable"
+
+
 def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] = None, world=None,
             margin_m: float = 0.0, cluster: Cluster = Cluster()) -> Section:
     """Adaptive stress testing and rare events as a report part (both tables, edge-30)."""
@@ -41,6 +64,10 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
                 checks.append(Check(f"stress {name}: the {key.replace('_', ' ')} replays from its candump log",
                                     bool(f["replay_reproduces"]), f"{f['candump']}: "
                                     + ("same demand every cycle" if f["replay_reproduces"] else "demands differ")))
+        verdict = failure_class(r["most_likely_failure"], run_cfg)
+        checks.append(Check(f"stress {name}: the likeliest failure is one no monitor survives, or a blindness longer than "
+                            f"forget_ms below log-likelihood {OLD_LIKELIEST}", verdict != "survivable",
+                            verdict, {"class": verdict}))
         rare = r["rare_event"]
         for key, label in (("most_likely_failure", "likeliest"), ("most_likely_failure_after_release", "after a release")):
             f = r[key]
@@ -77,7 +104,9 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
           "its rates are assumptions, not measurements. Against the tolerable hazard rates of the hazard section "
           "(1e-9 /h, CSM-DT catastrophic; 1e-7 /h, SIL 3): at one such encounter per train-hour, the probability per "
           "encounter must stay below those numbers. `m2 held` (full mode) is the same table with every emergency held to "
-          "standstill (`emergency_release = 0`): the other side of the release trade-off.\n\n"
+          "standstill (`emergency_release = 0`): the other side of the release trade-off. How long the monitor "
+          "remembers an obstacle no channel shows (forget_ms) is chosen from the sweep of "
+          "`python -m verification.stress.tradeoff` (docs/supervision.md section 5).\n\n"
           + md_table(["table", "what", "log-likelihood / estimate", "disturbance"], rows)
           + "\nThe rare-event estimates against the hazard section's tolerable hazard rates, at one such encounter "
             "per train-hour (the collision rate per hour is then the probability per encounter):\n\n"
