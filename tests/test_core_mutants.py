@@ -1046,3 +1046,17 @@ def test_an_obstacle_of_its_own_speed_1_cms_lengthens_the_lead():
     assert tuple(oncoming) == reference_curves(Config(), 49, 0, 0, 49, 0)
     away = curves(Config(), 50, 0, 0, 48, 0)       # 51 cm/s with the error; the obstacle moves away at 1 cm/s
     assert (away.sbi_dm - away.ebi_dm, away.warning_dm - away.sbi_dm) == (11, 11)
+
+
+def test_keep_held_keeps_only_while_moving_and_only_above_the_causes():
+    """envelope.keep_held: while an obstacle in sight closes in, what is held is kept while
+    the train moves, 1 cm/s included; at standstill (0 cm/s) the causes' demand goes through,
+    so the hold can release there; nothing above the causes is invented."""
+    from monitor.core.envelope import keep_held
+
+    assert keep_held(MAINTAIN, EMERGENCY, 1, True) == EMERGENCY
+    assert keep_held(MAINTAIN, EMERGENCY, 2, True) == EMERGENCY
+    assert keep_held(MAINTAIN, EMERGENCY, 0, True) == MAINTAIN
+    assert keep_held(SERVICE, EMERGENCY, 0, True) == SERVICE
+    assert keep_held(MAINTAIN, EMERGENCY, 4000, False) == MAINTAIN
+    assert keep_held(EMERGENCY, SERVICE, 4000, True) == EMERGENCY

@@ -22,7 +22,7 @@ from monitor.core.config import Config, forget_cycles
 from monitor.core.cycle import initial_state, step
 from monitor.core.memory import accel_run, far_travel, forget, near_travel, observe
 from monitor.core.types import (
-    DEGRADED, EMERGENCY, INIT, MAINTAIN, NORMAL, PRESENT, R_MEMORY, SERVICE, STATIC, TRACK_CONFIRMING,
+    DEGRADED, EMERGENCY, INIT, MAINTAIN, NORMAL, PRESENT, R_LATCH, R_MEMORY, SERVICE, STATIC, TRACK_CONFIRMING,
     TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED, TRACK_SEEN, Inputs, Report, State, Train,
 )
 from tests.test_core_cycle import clear, normal_driver, present, with_channel
@@ -260,3 +260,112 @@ def test_the_memory_defaults_are_the_documented_ones():
     assert (cfg.forget_ms, cfg.sensor_range_dm) == (7500, 4000)
     assert forget_cycles(cfg) == 75
 
+
+
+# --------------------------------------------------------------------------- keeping what is held (keep_held)
+#
+# An obstacle in sight and closing, in the table's zones when the keeping began, keeps what
+# is held while the train moves (cycle.py: keep, State.kept; envelope.keep_held). The table
+# here never brakes, so the curves, the error rules and the hold alone decide; with Model 1
+# the observation is the table's zone itself.
+
+FAR = 40000               # 4 km: beyond the table's zones (alpha1 + 1 km) and every curve at 30 m/s
+
+
+def keeper():
+    from tests.test_core_cycle import M1, maintain_only
+
+    return normal_driver(Config(), maintain_only(M1))
+
+
+def sees(d, distance: int, closing: int, stale: bool = False) -> tuple:
+    reports = present(d.tick, distance, closing=closing)
+    return with_channel(reports, 5, Report(DEGRADED, 0, 0, STATIC, d.tick)) if stale else reports
+
+
+def emergency_inside_ebi(d) -> None:
+    c = curves(d.cfg, V, 0, 0, V, 0)
+    out = d.cycle(sees(d, c.ebi_dm, V), V)
+    assert out.demand == EMERGENCY and out.observation == 3 and d.state.kept
+
+
+def test_standstill_ends_the_keeping():
+    """At standstill what is held goes down to the causes' demand, even with an oncoming
+    obstacle in sight in the table's zones."""
+    d = keeper()
+    emergency_inside_ebi(d)
+    out = d.cycle(sees(d, 5000, 100), 0)                 # 500 m, oncoming at 1 m/s; the train stands
+    assert out.observation == 1 and out.demand == MAINTAIN and not d.state.kept
+
+
+def test_1_cms_and_a_closing_speed_of_1_cms_keep():
+    """1 cm/s is moving, and 1 cm/s of closing speed is closing: what is held is kept however
+    long the obstacle stays in the zones."""
+    d = keeper()
+    emergency_inside_ebi(d)
+    for k in range(3 * d.cfg.release_confirm_cycles):
+        out = d.cycle(sees(d, 5000, 1), 1)
+        assert out.observation >= 1 and out.demand == EMERGENCY and out.reasons & R_LATCH and d.state.kept, k
+
+
+def test_once_keeping_at_1_cms_the_zones_no_longer_matter():
+    """The keeping began in the zones (inside EBI); the obstacle, still in sight and closing
+    at 1 cm/s, is then beyond the zones: still kept, the train rolling at 1 cm/s."""
+    d = keeper()
+    emergency_inside_ebi(d)
+    for k in range(3 * d.cfg.release_confirm_cycles):
+        out = d.cycle(sees(d, FAR, 1), 1)
+        assert out.observation == 0 and out.demand == EMERGENCY and d.state.kept, k
+
+
+def _released_after_the_confirmation(d, speed: int, closing: int) -> None:
+    """The obstacle in sight, closing, beyond the zones: what is held is released after
+    exactly release_confirm_cycles calm cycles."""
+    n = d.cfg.release_confirm_cycles
+    for k in range(n - 1):
+        out = d.cycle(sees(d, FAR, closing), speed)
+        assert out.observation == 0 and out.demand == EMERGENCY and out.reasons & R_LATCH and not d.state.kept, k
+    out = d.cycle(sees(d, FAR, closing), speed)
+    assert out.demand == MAINTAIN and not d.state.kept
+
+
+def test_an_error_s_emergency_is_not_kept_by_an_obstacle_beyond_the_zones():
+    """An emergency the error rules raised (a stale channel, safe_reaction emergency) with no
+    obstacle in sight: an obstacle then seen closing but beyond the table's zones does not
+    keep it."""
+    d = keeper()
+    out = d.cycle(with_channel(clear(d.tick), 5, Report(DEGRADED, 0, 0, STATIC, d.tick)), V)
+    assert out.demand == EMERGENCY and not d.state.kept
+    _released_after_the_confirmation(d, V, V)
+
+
+def test_what_was_raised_at_standstill_is_not_kept_once_moving():
+    """An emergency raised at standstill for an oncoming obstacle inside EBI: keeping starts
+    only while moving, so once the train rolls (1 cm/s) and the obstacle is beyond the
+    zones, the hold's confirmation runs."""
+    d = keeper()
+    c = curves(d.cfg, 0, 0, 0, 1000, 0)
+    out = d.cycle(sees(d, c.ebi_dm, 1000), 0)
+    assert out.demand == EMERGENCY and out.observation == 3 and not d.state.kept
+    _released_after_the_confirmation(d, 1, 1)
+
+
+def test_an_obstacle_in_the_zones_with_nothing_held_starts_no_keeping():
+    """An obstacle in sight in the table's zones, beyond every curve: nothing is
+    held, so nothing is kept; an emergency raised next (a stale channel, the obstacle now
+    beyond the zones) is released after the confirmation."""
+    d = keeper()
+    c = curves(d.cfg, V, 0, 0, V, 0)
+    out = d.cycle(sees(d, c.warning_dm + 100, V), V)
+    assert out.observation >= 1 and out.demand == MAINTAIN and not d.state.kept
+    out = d.cycle(sees(d, FAR, V, stale=True), V)
+    assert out.demand == EMERGENCY and not d.state.kept
+    _released_after_the_confirmation(d, V, V)
+
+
+def test_the_safe_stop_fallback_reports_no_track():
+    """step's fallback for anything unforeseen: no remembered obstacle in its outputs
+    (track_dm 65535, track_cycles 0, track_state none), as the C core's fallback writes."""
+    d = normal_driver(Config())
+    state, out = step(d.setup, d.state, None, d.tick)
+    assert (out.track_dm, out.track_cycles, out.track_state) == (65535, 0, 0)

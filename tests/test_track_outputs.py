@@ -27,7 +27,7 @@ from railguard.main import main
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = ROOT / "monitor" / "tables" / "m2.table.rgt"
 PERIOD = 100
-SEEN, SILENT, ABSENT_FOR = 20, 10, 60          # periods of each phase of the log
+SEEN, SILENT, ABSENT_FOR = 20, 10, 85          # periods of each phase of the log (forget_ms: 75 cycles)
 TRACK_KEYS = {"held_longest_s", "held_total_s", "forgotten", "passed", "memory_cycles"}
 PNG = b"\x89PNG\r\n\x1a\n"
 

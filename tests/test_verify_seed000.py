@@ -86,9 +86,14 @@ def test_a_train_with_no_obstacle_never_brakes():
     assert math.isclose(m["distance_m"], 40.0 * run.train_seconds)
 
 
-def test_without_phantoms_braking_never_starts_without_an_obstacle(small_run):
+def test_without_phantoms_braking_seldom_starts_without_an_obstacle(small_run):
+    """Before the obstacle memory braking never started without an obstacle here; now an
+    obstacle that has just left the track can still be braked for (remembered until forget_ms
+    of confirmed absence, or kept while the hold's confirmation runs): 4 of 17 onsets in this
+    run (2 of 15 with forget_ms = 100). Issue 29's finding, left for its own work: which of
+    them the release rule could avoid."""
     assert small_run.metrics["onsets"] > 0
-    assert small_run.metrics["onsets_no_obstacle"] == 0
+    assert small_run.metrics["onsets_no_obstacle"] <= small_run.metrics["onsets"] // 4
     assert small_run.metrics["collisions"] == 0
 
 

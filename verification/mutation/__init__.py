@@ -39,7 +39,11 @@ points `fmu.build.C_DIR` at the copy and runs the Python-vs-C comparison test al
 sequences per table instead of its 5000 (its minimum edge hits scaled alike). Stillborn
 mutants are left out of the score.
 
-    python -m verification.mutation [--target python|c] [--files ...] [--json] [--list]
+    python -m verification.mutation [--target python|c] [--files ...] [--scope ...] [--json] [--list]
+
+`--scope FILE[:FUNCTION|:FIRST-LAST] ...` keeps the mutants of part of the files (a function,
+a line range; `scope`), e.g. the code a change touched; the equivalents listed for the rest
+of those files are not reported as stale.
 
 prints progress on stderr, then the score (killed / non-equivalent), the survivors (id and
 diff) and the equivalent ones with their reasons; `--json` prints one object with keys
@@ -47,6 +51,7 @@ diff) and the equivalent ones with their reasons; `--json` prints one object wit
 
 The pieces, one concept each: `targets` (what is mutated, what judges it), `mutant` (a
 mutant, its id, the equivalents list), `generate_python` and `generate_c` (the operators),
+`scope` (--scope),
 `runner` (the fork servers, one fresh process per mutant), `summary` (score and report
 text), `tool` (`run` and the command line; `__main__` runs it) and `part` (`section`).
 This package re-exports their public names, so `from verification import mutation` reads
@@ -55,8 +60,8 @@ as before.
 from __future__ import annotations
 
 from .targets import (
-    CI_FILES, CORE, C_DIR, C_FILES, C_FUNCTIONS, C_SEQUENCES, C_TESTS, EQUIVALENTS, JOBS, PY_FILES, PY_TESTS,
-    REPORT_QUICK_FILES, ROOT, Progress,
+    CI_FILES, CI_SCOPES, CORE, C_DIR, C_FILES, C_FUNCTIONS, C_SEQUENCES, C_TESTS, EQUIVALENTS, JOBS, PY_FILES,
+    PY_TESTS, REPORT_QUICK_FILES, ROOT, Progress,
 )
 from .mutant import Mutant, load_equivalents
 from .generate_python import mutants_of, python_mutants
@@ -67,7 +72,7 @@ from .tool import main, run
 from .part import section
 
 __all__ = [
-    "CI_FILES", "CORE", "C_DIR", "C_FILES", "C_FUNCTIONS", "C_SEQUENCES", "C_TESTS", "EQUIVALENTS", "JOBS", "PY_FILES",
-    "PY_TESTS", "REPORT_QUICK_FILES", "ROOT", "Progress", "Mutant", "load_equivalents", "mutants_of", "python_mutants",
-    "c_mutants", "Server", "run_c", "run_python", "render", "summarize", "main", "run", "section",
+    "CI_FILES", "CI_SCOPES", "CORE", "C_DIR", "C_FILES", "C_FUNCTIONS", "C_SEQUENCES", "C_TESTS", "EQUIVALENTS", "JOBS",
+    "PY_FILES", "PY_TESTS", "REPORT_QUICK_FILES", "ROOT", "Progress", "Mutant", "load_equivalents", "mutants_of",
+    "python_mutants", "c_mutants", "Server", "run_c", "run_python", "render", "summarize", "main", "run", "section",
 ]

@@ -1,4 +1,4 @@
-"""`python -m verification.mutation [--target python|c] [--files ...] [--json] [--list] ...`: the
+"""`python -m verification.mutation [--target python|c] [--files ...] [--scope ...] [--json] [--list] ...`: the
 command line of the mutation tool (verification/mutation/tool.py, `main`)."""
 import sys
 

@@ -39,6 +39,9 @@ C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo
 
 Progress = Callable[[str], None]
 
-# the subsets: CI's (tests/test_mutation.py) and `railguard verify --quick`'s
+# the subsets: CI's (tests/test_mutation.py: CI_SCOPES, `--scope` of these) and `railguard
+# verify --quick`'s; CI's holds the voters, freshness, observation, the envelope (zones,
+# ladder, combine, the holds) and the obstacle memory's decisions (observe, forget)
 CI_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py")
-REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_FILES)
+CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget")
+REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_SCOPES)
