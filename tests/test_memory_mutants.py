@@ -1,17 +1,18 @@
 """The obstacle memory's exact boundaries (issue 29 item 7: mutation testing of the new code).
 
 Mutation testing (`python -m verification.mutation --scope memory.py envelope.py:hold
-envelope.py:table_hold cycle.py ...`) found behaviours of the obstacle memory, the holds and
-the new parts of the cycle that tests/test_core_memory.py let change unnoticed, mostly
-because its expectations were computed with the core's own constants and helpers
-(UNITS_PER_DM, near_travel) or allowed a tolerance: the unit of a position, the rounding of
-the prediction, the sensor range and the passed position at exactly their edges, the
-remembered obstacle's own speed and the train's share of a closing speed, the warning of
-the remembered and of the voted obstacle, what is kept of a forgotten track, and the
-defaults. Each test pins one such behaviour with values written out (positions in 1e-5 m,
-the unit of cm/s x ms) or computed here from the braking curves, which these mutants leave
-alone; everything runs through the real core: memory.py's functions directly against their
-documented contracts, and whole cycles through `create`/`step`.
+envelope.py:keep_held envelope.py:table_hold cycle.py:163-209 ...`) found behaviours of the
+obstacle memory, the holds and the new parts of the cycle that tests/test_core_memory.py
+let change unnoticed, mostly because its expectations were computed with the core's own
+constants and helpers (UNITS_PER_DM, near_travel) or allowed a tolerance: the unit of a
+position, the rounding of the prediction, the sensor range and the passed position at
+exactly their edges, the remembered obstacle's own speed and the train's share of a closing
+speed, the warning of the remembered and of the voted obstacle, what is kept of a forgotten
+track, when an obstacle in sight keeps what is held, and the defaults. Each test pins one
+such behaviour with values written out (positions in 1e-5 m, the unit of cm/s x ms) or
+computed here from the braking curves, which these mutants leave alone; everything runs
+through the real core: memory.py's functions directly against their documented contracts,
+and whole cycles through `create`/`step`.
 """
 from __future__ import annotations
 
