@@ -78,13 +78,14 @@ def _zip(folder: Path, target: Path) -> Path:
     return target
 
 
-def _stage(folder: Path, model: str, variables, extra: dict[str, str], core: bool) -> list[str]:
-    """Copy the core, the FMI wrapper contract and the model into folder/sources; write the
-    generated files. Returns the list of .c files."""
+def _stage(folder: Path, model: str, variables, extra: dict[str, str], core: bool,
+           core_dir: Path | None = None) -> list[str]:
+    """Copy the core (from `core_dir`, default fmu/c/core), the FMI wrapper contract and the
+    model into folder/sources; write the generated files. Returns the list of .c files."""
     src = folder / "sources"
     src.mkdir(parents=True)
     for name in (CORE_SOURCES + CORE_HEADERS) if core else ():
-        shutil.copy(C_DIR / "core" / name, src / name)
+        shutil.copy(Path(core_dir or C_DIR / "core") / name, src / name)
     for name in ("model.h", "rg_math.h", "rg_fmi_shared.h"):
         shutil.copy(C_DIR / "fmi" / name, src / name)
     for path in sorted((C_DIR / model).glob("*.[ch]")):
@@ -122,9 +123,10 @@ def monitor_starts(config: Config, period_ms: int) -> dict:
 
 
 def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: str | None = None,
-                  config: Config | None = None) -> Path:
+                  config: Config | None = None, core_dir: str | Path | None = None) -> Path:
     """The monitor FMU for the table `data` (the bytes of a .rgt file); its parameters start
-    at `config`'s values (default: Config(), the shipped declaration)."""
+    at `config`'s values (default: Config(), the shipped declaration). `core_dir`: the core's
+    C sources from there instead of fmu/c/core (a planted weakening's replay)."""
     if fmi not in (2, 3):
         raise BuildError(f"FMI version {fmi} is not supported (2 or 3)")
     try:
@@ -144,7 +146,8 @@ def build_monitor(data: bytes, fmi: int = 2, out_dir: str | Path = ".", name: st
         folder = Path(tmp)
         c_files = _stage(folder, "monitor", MONITOR, {"rg_table.h": generate.table_header(table, data),
                                                       "rg_parameters.h": generate.parameters_header(params),
-                                                      "build_info.h": generate.build_info_header(tok)}, core=True)
+                                                      "build_info.h": generate.build_info_header(tok)}, core=True,
+                         core_dir=Path(core_dir) if core_dir else None)
         if fmi == 2:
             xml = generate.model_description_fmi2(MONITOR_ID, tok, description, MONITOR, c_files + ["fmi2.c"],
                                                   0.1, 60.0, starts)

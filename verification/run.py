@@ -15,8 +15,16 @@ from .report import Progress, Section, timed, write_report
 from .scale import ClusterError
 
 PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof",
-         "mutation")
+         "physics", "mutation")
 CONFIGURED = ("campaign", "stress")      # parts whose section takes the world (`--braking`, `--world-train`, workers)
+DECLARED = ("physics",)                  # parts whose section takes the braking declaration (`--braking`) alone
+# Left out of the quick mode unless asked for with --part: the long parts, whose own test files
+# (tests/test_proof.py, tests/test_mutation.py) run the same work in CI; the full mode carries them.
+FULL_ONLY = ("proof", "mutation")
+
+
+def default_parts(quick: bool) -> tuple[str, ...]:
+    return tuple(p for p in PARTS if not (quick and p in FULL_ONLY))
 
 
 def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, ...] = PARTS,
@@ -41,6 +49,8 @@ def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, 
             if name in CONFIGURED:
                 options = {k: v for k, v in (("config", config), ("world", world), ("margin_m", margin_m),
                                              ("cluster", cluster)) if v}
+            elif name in DECLARED and config:
+                options = {"config": config}
             sections.append(timed(module.section, out, quick, progress, **options))
         except ClusterError:
             raise                          # the user's cluster, not the part: one line from the CLI
@@ -55,8 +65,10 @@ def run(out_dir: str | Path, quick: bool, progress: Progress, parts: tuple[str, 
         sections.append(scale_section(sections, names, quick, total))
     from monitor import __version__
 
+    left = [p for p in PARTS if p not in names]
     header = (f"railguard {__version__}, Python {platform.python_version()}, {platform.machine()}; "
-              f"{'quick' if quick else 'full'} mode; {total:.0f} s in all.\n")
+              f"{'quick' if quick else 'full'} mode; {total:.0f} s in all."
+              + (f" Parts not run: {', '.join(left)}." if left else "") + "\n")
     path = write_report(out, sections, "quick" if quick else "full", header)
     return sections, path
 

@@ -81,7 +81,8 @@ def run_parts(args: argparse.Namespace, parts: tuple[str, ...]) -> int:
 def verify(args: argparse.Namespace) -> int:
     from verification import run
 
-    parts = tuple(p for p in (tuple(args.part) if args.part else run.PARTS) if p not in (args.skip or ()))
+    parts = tuple(p for p in (tuple(args.part) if args.part else run.default_parts(args.quick))
+                  if p not in (args.skip or ()))
     if not parts:
         raise UserError("--skip leaves no part to run")
     return run_parts(args, parts)
@@ -97,18 +98,25 @@ def register(sub) -> None:
                     "logs of the proof and the campaign) into --out: the closed-loop Markov analysis of the shipped "
                     "tables (exact and Storm), the tables against the simple rules, the 2oo2/3oo3 voter's hazard rate "
                     "against tolerable rates, the simulations of seed 000 and seed 001 through the monitor core, the "
-                    "fault campaign, stress testing, receive-path fuzzing, the Frama-C proof of the C core and "
-                    "mutation testing. Prints one line per check; exit status 1 if any check fails. The tools each "
+                    "fault campaign, stress testing, receive-path fuzzing, the Frama-C proof of the C core, the Z3 "
+                    "proof that the braking curves are enough for the physics of every train inside the braking "
+                    "declaration (physics: one line per proof obligation) and mutation testing. Prints one line per check; exit status 1 if any check fails. The tools each "
                     "part needs are checked first: stormpy (closed_loop, hazard: pip install -e '.[verify]'), "
                     "frama-c, why3, z3, cvc4 and gcc (proof: apt-get install frama-c-base why3 z3 cvc4 gcc, then "
                     "why3 config detect); a missing one stops with one line naming it, exit 2.",
     )
     v.add_argument("--quick", action="store_true",
-                   help="smaller Monte Carlo runs and grids, a few minutes (what CI runs) (default: the full report)")
+                   help="smaller Monte Carlo runs and grids, the declaration in force only, and without the long "
+                        "parts proof and mutation unless named with --part (their own tests run them in CI): "
+                        "about 3 minutes (default: the full report)")
     options.add_out(v, "railguard-out/verify", "report folder")
     v.add_argument("--part", action="append", choices=PARTS, metavar="PART",
                    help=f"run only this part, repeatable: {', '.join(PARTS)} (default: every part)")
     v.add_argument("--skip", action="append", choices=PARTS, metavar="PART",
                    help="leave this part out, repeatable (default: none)")
+    v.add_argument("--braking", metavar="FILE.toml",
+                   help=options.BRAKING_HELP + "; the physics part proves the curves for it (without it: for the "
+                        "papers' train and examples/braking-one-band.toml, examples/braking-three-bands.toml), the "
+                        "campaign and stress parts run with it")
     options.add_json(v, 'print {"passed": bool, "checks": [{"name", "passed", "figure", ...}], ...}')
     v.set_defaults(func=verify)

@@ -1,0 +1,183 @@
+"""Issue 30: the braking curves proved sufficient for the physics with Z3 (verification/physics).
+
+Each proof is also shown able to fail: a wrong invariant, a curve computed from a weaker
+declaration, a weakened braking.py; and a refuted obligation replays as a collision in FMPy.
+The whole `railguard verify --part physics` runs once, as users run it (test_verify_physics_cli).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from fractions import Fraction
+
+import pytest
+import z3
+
+from monitor.core import braking
+from monitor.core.config import Config
+from verification.physics import model, obligations, symbolic, weakenings
+from verification.physics.model import Declaration
+
+
+# ------------------------------------------------------------------ the symbolic run
+
+
+def test_symbolic_run_follows_every_feasible_path_and_only_those():
+    def f(x, y):
+        if x < 10:
+            return x + y if y > 0 else -(-x // 3)
+        return x * 2 if x < 5 else x - 1          # x < 5 cannot hold here: one path, not two
+
+    x, y = z3.Reals("x y")
+    paths = symbolic.explore(f, {"x": x, "y": y}, [0 <= x, x <= 20, -5 <= y, y <= 5])
+    assert len(paths) == 3
+    # the ceiling's relaxation: every path value is sound for the integers it stands for
+    ceil_path = next(p for p in paths if any("Not" in str(c) and "y" in str(c) for c in p.condition))
+    s = z3.Solver()
+    s.add(0 <= x, x <= 20, x == 7, *ceil_path.condition, *ceil_path.side)
+    s.add(ceil_path.value < Fraction(7, 3))                     # ceil(7/3) = 3 >= 7/3: no model below 7/3
+    assert s.check() == z3.unsat
+
+
+def test_symbolic_run_refuses_what_it_cannot_follow():
+    x = z3.Real("x")
+    with pytest.raises(symbolic.Unsupported):
+        symbolic.explore(lambda x: [1, 2][x], {"x": x}, [0 <= x, x <= 1])
+    with pytest.raises(symbolic.Unsupported):
+        symbolic.explore(lambda x: 7 // x, {"x": x}, [-1 <= x, x <= 1])
+
+
+# ---------------------------------------------------------------- the model's invariants
+
+
+def test_differential_invariants_hold_and_a_wrong_one_is_refuted():
+    d = Declaration.of(Config())
+    invs = model.phase_invariants(d)
+    assert {i.phase for i in invs} == {"reaction", "build-up", "braking"}
+    for inv in invs:
+        assert obligations.refute(model.invariant_obligation(inv))[0] == "proved", inv.name
+    # travel <= v0 t forgets the acceleration: its derivative can be negative
+    v0 = z3.Real("v0")
+    wrong = model.Invariant("wrong", "reaction", v0 * model.T - model.X, [model.ACC <= 1, model.V >= 0],
+                            [model.X == 0, model.V == v0, model.T == 0])
+    assert obligations.refute(model.invariant_obligation(wrong))[0] == "refuted"
+    # a cubic in t is not a polynomial the Lie-derivative check covers: refused, not proved
+    cubic = model.Invariant("cubic", "reaction", model.T * model.T * model.T, [], [model.X == 0, model.T == 0])
+    assert obligations.refute(model.invariant_obligation(cubic))[0] == "refuted"
+
+
+# ---------------------------------------------------------------------- sufficiency
+
+
+@pytest.mark.parametrize("weaker", [
+    {"max_accel": Fraction(0)},                                     # traction forgotten
+    {"emergency_buildup": Fraction(1, 2)},                          # build-up halved
+    {"max_gradient": Fraction(0)},                                  # level line assumed
+    {"speed_error": Fraction(0)},                                   # speed error ignored
+])
+def test_a_curve_from_a_weaker_declaration_is_refuted_against_the_real_train(weaker):
+    d = Declaration.of(Config())
+    lemmas = obligations.Lemmas(d, False, 0, 0, curve_d=replace(d, **weaker))
+    verdicts = {name: obligations.refute(f)[0] for name, _, f in lemmas.steps() + lemmas.kind_steps("static")}
+    assert "refuted" in verdicts.values(), verdicts
+    assert all(v != "unknown" for v in verdicts.values())
+
+
+def test_oncoming_obstacle_left_out_of_the_curve_is_refuted():
+    d = Declaration.of(Config())
+    lemmas = obligations.Lemmas(d, False, 0, 0)
+    lemmas.real.phases["w"] = z3.RealVal(0)                  # the curve's obstacle term dropped
+    verdicts = {name: obligations.refute(f)[0] for name, _, f in lemmas.kind_steps("oncoming")}
+    assert "refuted" in verdicts.values()
+    assert all(obligations.refute(f)[0] == "proved" for _, _, f in lemmas.kind_steps("static"))
+
+
+# ----------------------------------------------------------- integer code and weakenings
+
+
+def test_weakened_braking_is_the_shipped_source_edited_and_refuses_stale_edits():
+    w = weakenings.by_name("buildup-halved")
+    weak = weakenings.weakened_braking(w)
+    cfg = Config()
+    assert weak.curves(cfg, 3000, 0, 0, 3000, 0).ebi_dm < braking.curves(cfg, 3000, 0, 0, 3000, 0).ebi_dm
+    assert weak.curves(cfg, 3000, 0, 0, 3000, 0).ebd_dm == braking.curves(cfg, 3000, 0, 0, 3000, 0).ebd_dm
+    with pytest.raises(weakenings.WeakeningError):
+        weakenings.edit("nothing to edit", w.python, "braking.py")
+    with pytest.raises(weakenings.WeakeningError):
+        weakenings.by_name("no-such-weakening")
+
+
+def test_every_weakening_edits_the_c_core_too(tmp_path):
+    for w in weakenings.WEAKENINGS:
+        core = weakenings.weakened_core(w, tmp_path / w.name)
+        text = (core / "rg_core.c").read_text()
+        assert all(new in text for _, new in w.c), w.name
+
+
+def test_integer_curves_of_one_and_three_band_declarations_are_proved(tmp_path):
+    from monitor.declaration import apply, load
+    from verification.physics import REPO, EXAMPLES
+
+    for path in EXAMPLES:
+        cfg = apply(Config(), load(REPO / path), path)
+        d = Declaration.of(cfg)
+        results = obligations.invariant_results(d) + obligations.sufficiency_results(d)
+        assert results and all(r.proved for r in results), [r.line() for r in results if not r.proved]
+    assert len(Declaration.of(apply(Config(), load(REPO / EXAMPLES[1]), "3")).bands) == 3
+
+
+# --------------------------------------------------------- the part, as users run it
+
+
+@pytest.fixture(scope="module")
+def physics_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("physics")
+    proc = subprocess.run([sys.executable, "-m", "railguard", "verify", "--part", "physics", "--json", "--out", str(out)],
+                          capture_output=True, text=True, timeout=900)
+    return proc, out
+
+
+def test_verify_physics_cli_proves_everything_and_catches_every_weakening(physics_run):
+    proc, out = physics_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    data = json.loads(proc.stdout)
+    assert data["passed"] is True
+    names = [c["name"] for c in data["checks"]]
+    obligations_run = [c for c in data["checks"] if c["name"].startswith("physics [")]
+    assert len(obligations_run) > 150                        # three declarations, every obligation one entry
+    assert {c["details"]["kind"] for c in obligations_run} == {"dI", "sufficiency", "integer"}
+    assert {c["details"]["declaration"] for c in obligations_run} == {
+        "papers' train (shipped)", "examples/braking-one-band.toml", "examples/braking-three-bands.toml"}
+    for w in weakenings.WEAKENINGS:
+        assert f"physics: planted weakening {w.name} is caught" in names
+    saved = json.loads((out / "physics" / "physics.json").read_text())
+    replays = {w["weakening"]: w["replay"] for w in saved["weakenings"]}
+    # the two weakenings whose shortfall exceeds the other terms' slack collide; the shipped core stops
+    for name in ("gradient-uphill", "oncoming-ignored"):
+        assert replays[name]["weakened"]["outcome"] == "collision", replays[name]
+        assert replays[name]["shipped"]["outcome"] != "collision", replays[name]
+    # every replayed scenario plays in `railguard cosim` as the report says
+    r = replays["gradient-uphill"]
+    fmu = r["command"].split("--monitor-fmu ")[1]
+    cosim = subprocess.run([sys.executable, "-m", "railguard", "cosim", r["scenario"], "--monitor-fmu", fmu, "--json",
+                            "--no-plot", "--out", str(out / "cosim")], capture_output=True, text=True, timeout=300)
+    assert cosim.returncode == 0, cosim.stderr
+    assert json.loads(cosim.stdout)["outcome"] == "collision"
+    shipped = subprocess.run([sys.executable, "-m", "railguard", "cosim", r["scenario"], "--json", "--no-plot",
+                              "--out", str(out / "cosim")], capture_output=True, text=True, timeout=300)
+    assert json.loads(shipped.stdout)["outcome"] == "stopped"
+
+
+def test_verify_physics_refuses_a_bad_declaration_in_one_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[braking]\nemergency_decel = 0.2\nservice_decel = 0.1\nemergency_buildup_s = 1\n"
+                   "service_buildup_s = 2\ntraction_cutoff_s = 0.8\nmax_accel = 0.5\nspeed_error = 0.02\n"
+                   "slippery_factor = 0.7\ndegraded_factor = 0.8\nmax_downhill_gradient = 40\n"
+                   "standstill_margin_m = 5\n")
+    proc = subprocess.run([sys.executable, "-m", "railguard", "verify", "--part", "physics", "--braking", str(bad),
+                           "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert "gradient" in proc.stderr or "decel" in proc.stderr

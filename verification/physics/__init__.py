@@ -1,0 +1,133 @@
+"""`railguard verify --part physics`: the braking curves proved sufficient for the physics
+(issue 30), for every train inside the braking declaration, with Z3.
+
+* model.py: the world's train as a hybrid model, its phases' differential invariants, and
+  the curves in exact real arithmetic;
+* symbolic.py: the shipped monitor/core/braking.py run on symbolic numbers;
+* obligations.py: the proof obligations (dI, sufficiency, integer >= real) and their check;
+* weakenings.py: planted weakenings of the Python and the C, which the proof must catch;
+* replay.py: a refuted obligation as a cosim scenario that collides.
+
+The part proves the declaration in force (`--braking`, default the papers' train) and, when
+none is given, also the example declarations with one and three speed bands; then it plants
+each weakening, requires the proof to fail on it, and replays the counterexamples in FMPy.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+from monitor.core.config import Config
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLES = ("examples/braking-one-band.toml", "examples/braking-three-bands.toml")
+
+
+def declarations(config: Optional[Config], quick: bool = False) -> list[tuple[str, Config]]:
+    """(label, Config) of every declaration the part proves: the one given, else the papers'
+    train and (full mode) the examples with one and three speed bands."""
+    if config is not None and config != Config():
+        return [("the declaration given", config)]
+    if quick:
+        return [("papers' train (shipped)", Config())]
+    from monitor.declaration import apply, load
+
+    out = [("papers' train (shipped)", Config())]
+    for path in EXAMPLES:
+        out.append((path, apply(Config(), load(REPO / path), path)))
+    return out
+
+
+def prove(cfg: Config, progress: Callable[[str], None] = lambda _: None, braking=None):
+    """Every obligation for `cfg` on the shipped code (or the `braking` module given)."""
+    from monitor.core import braking as shipped
+
+    from . import obligations
+
+    return obligations.check_all(cfg, braking or shipped, progress=progress)
+
+
+def weakening_runs(cfg: Config, out_dir: Path, progress: Callable[[str], None], replay_all: bool = True) -> list[dict]:
+    """Each planted weakening: the obligation it fails, and its counterexample replayed in
+    co-simulation against the weakened and the shipped monitor."""
+    from fmu import build
+    from fmu.acceptance import curves_only_table
+    from monitor.tables import read
+
+    from . import obligations, replay, weakenings
+    from .model import Declaration
+
+    d = Declaration.of(cfg)
+    out = []
+    for w in weakenings.WEAKENINGS:
+        t0 = time.perf_counter()
+        module = weakenings.weakened_braking(w)
+        results = obligations.integer_results(cfg, d, module)
+        failed = [r for r in results if not r.proved]
+        row = {"weakening": w.name, "what": w.what, "caught": bool(failed),
+               "failed": [r.name for r in failed], "replay": None}
+        target = next((r for r in failed if r.context["curve"] == "ebi" and not r.context["service"]
+                       and not r.context["track"] and not r.context["brake"]), None)
+        if target is not None and replay_all:
+            folder = out_dir / "physics" / w.name
+            fmu = build.build_monitor(curves_only_table(read("m1")), 2, folder, name="weakened-monitor.fmu",
+                                      core_dir=weakenings.weakened_core(w, folder / "core"))
+            for oncoming in (False, True):
+                point = replay.worst_point(cfg, module, target, oncoming=oncoming)
+                if point is None:
+                    continue
+                kind = "oncoming" if oncoming else "static"
+                path, figures = replay.write_scenario(cfg, point, module, f"{w.name} ({w.what}): {target.name}, "
+                                                      f"{kind} obstacle", folder / f"{w.name}-{kind}.toml")
+                weak = replay.play(path, fmu, folder / "work")
+                sound = replay.play(path, None, folder / "work")
+                entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
+                         "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
+                if row["replay"] is None or (weak["outcome"] == "collision" and sound["outcome"] != "collision"):
+                    row["replay"] = entry
+                if weak["outcome"] == "collision" and sound["outcome"] != "collision":
+                    break
+        row["seconds"] = time.perf_counter() - t0
+        progress(f"physics: weakening {w.name}: {'caught' if row['caught'] else 'NOT caught'}"
+                 + (f", replay {row['replay']['weakened']['outcome']}" if row["replay"] else ""))
+        out.append(row)
+    return out
+
+
+def markdown(proofs: list[tuple[str, list]], weak: list[dict]) -> str:
+    from .model import ASSUMPTIONS
+    from .report_md import proofs_md, weakenings_md
+
+    return proofs_md(proofs, ASSUMPTIONS) + weakenings_md(weak)
+
+
+def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
+    """The `railguard verify` part: the declaration in force, every weakening caught (quick
+    mode, about 30 s); also the example declarations and the replays in FMPy (full mode and
+    `--part physics`, about two minutes)."""
+    from ..report import Check, Section
+
+    out_dir = Path(out_dir)
+    checks, proofs = [], []
+    for label, cfg in declarations(config, quick):
+        progress(f"physics: {label}")
+        results = prove(cfg, progress)
+        proofs.append((label, results))
+        for r in results:
+            checks.append(Check(f"physics [{label}] {r.name}", r.proved, f"{r.status} in {r.seconds:.2f} s",
+                                {"kind": r.kind, "phase": r.phase, "status": r.status, "seconds": round(r.seconds, 3),
+                                 "counterexample": r.model, "declaration": label}))
+    weak = weakening_runs(config or Config(), out_dir, progress, replay_all=not quick)
+    for row in weak:
+        checks.append(Check(f"physics: planted weakening {row['weakening']} is caught", row["caught"],
+                            "fails " + (row["failed"][0] if row["failed"] else "nothing"), row))
+    (out_dir / "physics").mkdir(parents=True, exist_ok=True)
+    (out_dir / "physics" / "physics.json").write_text(json.dumps(
+        {"declarations": [{"declaration": label, "obligations": [r.__dict__ for r in results]} for label, results in proofs],
+         "weakenings": weak}, indent=1, default=str))
+    proved = sum(r.proved for _, rs in proofs for r in rs)
+    total = sum(len(rs) for _, rs in proofs)
+    return Section("Physics: the curves proved sufficient (Z3)", markdown(proofs, weak), checks,
+                   headline={"obligations": total, "proved": proved})

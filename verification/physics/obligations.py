@@ -1,0 +1,301 @@
+"""The proof obligations of `railguard verify --part physics` and their checking with Z3.
+
+Three kinds, each named after the phase or the piece of code it covers:
+
+* `dI`: a phase's bound is a differential invariant of the model (model.phase_invariants);
+* `sufficiency`: from the phases' bounds, a brake demanded at distance >= the real-valued
+  curve stops the train `standstill_margin` before the obstacle, for every train, gradient,
+  speed error, report age and closing speed inside the declaration (issue 30 item 2), per
+  curve (emergency: EBI; service: the service-brake curve alpha1), obstacle kind (static,
+  receding, oncoming) and reported condition (normal, slippery, degraded, both);
+* `integer`: the integer curves of the shipped monitor/core/braking.py, run symbolically
+  (symbolic.py), are never shorter than the real-valued ones, on every path (item 3).
+
+An obligation is refuted by a Z3 model (a counterexample), proved when Z3 says unsat, and
+unknown on a timeout; only `proved` counts.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from fractions import Fraction
+from types import ModuleType
+from typing import Callable, Optional
+
+import z3
+
+from monitor.core.config import Config
+from monitor.core.types import MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS
+
+from . import symbolic
+from .model import (G, MAX_TRACK_CLOSING_CMS, MAX_UPHILL, Declaration, band_sums, invariant_obligation, phase_invariants, pos,
+                    q, real_curves)
+
+CONDITIONS = ((0, 0, "normal"), (1, 0, "slippery"), (0, 1, "degraded"), (1, 1, "slippery+degraded"))
+SERVICE_CONDITIONS = CONDITIONS[:1]   # the core uses the service curve (the table's alpha1) under normal conditions only
+KINDS = ("static", "receding", "oncoming")
+CURVES = ("ebd", "ebi", "sbi", "warning")
+TIMEOUT_MS = 60000
+EXPLORE_TIMEOUT_MS = 2000     # a branch side Z3 cannot rule out this fast is followed (sound: one more path)
+
+
+@dataclass
+class Result:
+    name: str
+    kind: str                      # dI, sufficiency, integer
+    phase: str
+    status: str = "unknown"        # proved, refuted, unknown
+    seconds: float = 0.0
+    model: dict = field(default_factory=dict)     # the counterexample, in SI units (refuted only)
+    context: dict = field(default_factory=dict)   # curve, obstacle kind, condition
+
+    @property
+    def proved(self) -> bool:
+        return self.status == "proved"
+
+    def line(self) -> str:
+        return f"{'PROVED ' if self.proved else self.status.upper():8} {self.seconds:6.2f} s  {self.name}"
+
+
+def refute(formula, timeout_ms: int = TIMEOUT_MS) -> tuple[str, Optional[z3.ModelRef]]:
+    s = z3.Solver()
+    s.set("timeout", timeout_ms)
+    s.add(formula)
+    r = s.check()
+    if r == z3.unsat:
+        return "proved", None
+    if r == z3.sat:
+        return "refuted", s.model()
+    return "unknown", None
+
+
+def value(model: z3.ModelRef, term) -> float:
+    v = model.eval(term, model_completion=True)
+    if z3.is_rational_value(v):
+        return float(Fraction(v.numerator_as_long(), v.denominator_as_long()))
+    if z3.is_algebraic_value(v):
+        return float(v.approx(12).as_fraction())
+    return float(str(v))
+
+
+def timed(result: Result, formula, named: dict, timeout_ms: int) -> Result:
+    t0 = time.perf_counter()
+    result.status, model = refute(formula, timeout_ms)
+    result.seconds = time.perf_counter() - t0
+    if model is not None:
+        result.model = {k: value(model, t) for k, t in named.items()}
+    return result
+
+
+# ------------------------------------------------------------------------------------ dI
+
+
+def invariant_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
+    return [timed(Result(f"dI {inv.name}", "dI", inv.phase), invariant_obligation(inv), {}, timeout_ms)
+            for inv in phase_invariants(d)]
+
+
+# ---------------------------------------------------------------------------- sufficiency
+
+
+class Lemmas:
+    """The model's variables and the steps from the phases' dI bounds to "stops short", each a
+    formula to refute, named after the phase it covers (the way a KeYmaera proof splits)."""
+
+    def __init__(self, d: Declaration, service: bool, track: int, brake: int, curve_d: Optional[Declaration] = None):
+        """`curve_d`: the declaration the curve is computed from (default `d`, the train's): a
+        test plants a weaker one to see the proof fail."""
+        self.d, self.service, self.track, self.brake = d, service, track, brake
+        v, v0, c, w0, age, grad, D = z3.Reals("v v0 c w0 age grad D")
+        self.v, self.v0, self.c, self.w0, self.age, self.grad, self.D = v, v0, c, w0, age, grad, D
+        self.x1, self.v1, self.x2, self.v2, self.xb, self.tb = z3.Reals("x1 v1 x2 v2 xb tb")
+        self.brakes = d.brake(service)
+        self.dec = [z3.Real(f"d{i}") for i in range(len(self.brakes))]
+        e = q(d.speed_error)
+        self.gg = q(G) * grad
+        self.real = real_curves(curve_d or d, v, c, age, track, brake, service)
+        self.domain = [0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
+                       0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient),
+                       c == v0 + w0, -q(Fraction(MAX_CLOSING_CMS, 100)) <= c,
+                       c <= q(Fraction(MAX_TRACK_CLOSING_CMS, 100))]
+        self.domain += [di >= q(a * d.factor(track, brake)) for di, (_, a) in zip(self.dec, self.brakes)]
+        self.t1 = age + q(d.period + d.traction_cutoff)
+        self.t2 = q(max(Fraction(0), d.buildup(service) - d.traction_cutoff))
+        # the dI bounds of each phase at the true start values (model.phase_invariants)
+        a1, a2 = pos(q(d.max_accel) + self.gg), pos(self.gg)
+        self.reaction = [self.x1 <= v0 * self.t1 + a1 * self.t1 * self.t1 / 2, 0 <= self.v1,
+                         self.v1 <= v0 + a1 * self.t1]
+        self.buildup = [self.x2 <= self.v1 * self.t2 + a2 * self.t2 * self.t2 / 2, 0 <= self.v2,
+                        self.v2 <= self.v1 + a2 * self.t2]
+        self.band_x = [z3.Real(f"xb{i}") for i in range(len(self.brakes))]
+        self.band_t = [z3.Real(f"tb{i}") for i in range(len(self.brakes))]
+        self.braking = [self.xb == z3.Sum(self.band_x), self.tb == z3.Sum(self.band_t)]
+        for i, ((lo, _), di) in enumerate(zip(self.brakes, self.dec)):
+            net = di - self.gg
+            top = self.v2 if i + 1 == len(self.brakes) else z3.If(self.v2 < q(self.brakes[i + 1][0]), self.v2,
+                                                                 q(self.brakes[i + 1][0]))
+            inside = self.v2 > q(lo)
+            # the band's dI bounds, entered at top and left at lo, multiplied out (net > 0)
+            self.braking += [z3.If(inside, z3.And(2 * net * self.band_x[i] <= top * top - q(lo) * q(lo),
+                                                  net * self.band_t[i] <= top - q(lo), self.band_x[i] >= 0,
+                                                  self.band_t[i] >= 0),
+                                   z3.And(self.band_x[i] == 0, self.band_t[i] == 0))]
+        self.closed = pos(w0) * (self.t1 + self.t2 + self.tb)
+        # each band's distance and time at the declared deceleration (worst gradient), from the true v2
+        gg_max = q(G * d.max_gradient)
+        self.bound_x, self.bound_t = [], []
+        for i, (lo, a) in enumerate(self.brakes):
+            declared = q(a * d.factor(track, brake)) - gg_max
+            top = self.v2 if i + 1 == len(self.brakes) else z3.If(self.v2 < q(self.brakes[i + 1][0]), self.v2,
+                                                                 q(self.brakes[i + 1][0]))
+            self.bound_x.append(z3.If(self.v2 > q(lo), (top * top - q(lo) * q(lo)) / (2 * declared), 0))
+            self.bound_t.append(z3.If(self.v2 > q(lo), (top - q(lo)) / declared, 0))
+
+    def sum_step(self) -> object:
+        """The bands' bounds add up (linear): each band within its bound b_i (the band steps),
+        the bounds' sum within the curve's phase 3 (the monotone step) => the whole braking
+        within phase 3. The b_i stand for the bounds' terms, so the step is plain linear arithmetic."""
+        p = self.real.phases
+        n = len(self.brakes)
+        bx, bt = [z3.Real(f"bx{i}") for i in range(n)], [z3.Real(f"bt{i}") for i in range(n)]
+        s3, t3 = z3.Reals("S3 T3")
+        return z3.And(self.xb == z3.Sum(self.band_x), self.tb == z3.Sum(self.band_t),
+                      *(x <= b for x, b in zip(self.band_x, bx)), *(t <= b for t, b in zip(self.band_t, bt)),
+                      z3.Sum(bx) <= s3, z3.Sum(bt) <= t3, z3.Or(self.xb > s3, self.tb > t3))
+
+    def named(self) -> dict:
+        out = {"measured_speed": self.v, "true_speed": self.v0, "closing_speed": self.c, "obstacle_speed": self.w0,
+               "report_age": self.age, "gradient": self.grad, "distance": self.D, "curve_ebi": self.real.ebi,
+               "reaction_travel": self.x1, "buildup_travel": self.x2, "braking_travel": self.xb,
+               "braking_time": self.tb, "speed_after_reaction": self.v1, "speed_at_braking": self.v2}
+        out.update({f"decel{i}": di for i, di in enumerate(self.dec)})
+        return out
+
+    def kind(self, kind: str) -> list:
+        return [self.w0 == 0] if kind == "static" else [self.w0 < 0] if kind == "receding" else [self.w0 > 0]
+
+    def declared(self) -> tuple:
+        """(distance, time) to brake from v2 at the declared decelerations (worst gradient)."""
+        gg_max = q(G * self.d.max_gradient)
+        net = [q(a * self.d.factor(self.track, self.brake)) - gg_max for _, a in self.brakes]
+        return band_sums(self.brakes, net, self.v2)
+
+    def steps(self) -> list[tuple[str, str, object]]:
+        """(name, phase, formula to refute) of the steps that do not depend on the obstacle."""
+        p = self.real.phases
+        net_ok = [di - self.gg > 0 for di in self.dec]
+        base = self.domain
+        s_decl, t_decl = self.declared()
+        u = z3.Real("u")
+        out = [
+            ("reaction: travel and speed within the curve's phase 1", "reaction",
+             z3.And(*base, *self.reaction, z3.Or(self.x1 > p["s1"], self.v1 > p["v1"]))),
+            ("build-up: travel and speed within the curve's phase 2", "build-up",
+             z3.And(*base, *self.reaction, *self.buildup, self.v1 <= p["v1"],
+                    z3.Or(self.x2 > p["s2"], self.v2 > p["v2"]))),
+            ("braking: the declared deceleration is positive under the worst gradient", "braking",
+             z3.And(*base, z3.Not(z3.And(*net_ok))))]
+        for i, (lo, _) in enumerate(self.brakes):
+            out.append((f"braking: band {i + 1} from {float(lo):g} m/s, distance and time within the declared "
+                        "deceleration's", "braking",
+                        z3.And(*base, *net_ok, self.v2 >= 0, *self.braking,
+                               z3.Or(self.band_x[i] > self.bound_x[i], self.band_t[i] > self.bound_t[i]))))
+        gg_max = q(G * self.d.max_gradient)
+        s_u, t_u = band_sums(self.brakes, [q(a * self.d.factor(self.track, self.brake)) - gg_max
+                                           for _, a in self.brakes], u)
+        out.append(("braking: the declared bands' distance and time grow with the speed (up to the curve's v2)",
+                    "braking", z3.And(*base, 0 <= self.v2, self.v2 <= u, z3.Or(s_decl > s_u, t_decl > t_u))))
+        out.append(("braking: the bands add up to within the curve's phase 3", "braking", self.sum_step()))
+        return out
+
+    def kind_steps(self, kind: str) -> list[tuple[str, str, object]]:
+        """(name, phase, formula to refute) of the steps that do: the obstacle's travel, the sum."""
+        p = self.real.phases
+        base = self.domain + self.kind(kind)
+        return [
+            (f"obstacle ({kind}): its travel until the train stands within the curve's", "obstacle",
+             z3.And(*base, 0 <= self.tb, self.tb <= p["t3"], self.closed > p["w"] * (p["t1"] + p["t2"] + p["t3"]))),
+            (f"stops short ({kind}): D >= EBI and the phases' bounds leave the margin", "composition",
+             z3.And(*base, self.x1 <= p["s1"], self.x2 <= p["s2"], self.xb <= p["s3"],
+                    self.closed <= p["w"] * (p["t1"] + p["t2"] + p["t3"]), self.D >= self.real.ebi,
+                    self.D - self.x1 - self.x2 - self.xb - self.closed < q(self.d.margin))),
+        ]
+
+
+def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
+    """Per brake (emergency at EBI, service at alpha1) and reported condition: every step from
+    the phases' bounds to "stops standstill_margin short", the last two per obstacle kind. The
+    braking steps chain: each band's dI bound within the declared deceleration's at the true
+    speed v2, that within the curve's at its v2 (monotone), and the sum (linear, in the last step)."""
+    out = []
+    for service in (False, True):
+        curve = "alpha1 (service)" if service else "EBI (emergency)"
+        for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
+            lemmas = Lemmas(d, service, track, brake)
+            steps = [(s, None) for s in lemmas.steps()] + [(s, k) for k in KINDS for s in lemmas.kind_steps(k)]
+            for (name, phase, formula), kind in steps:
+                r = Result(f"{curve}, {cond}: {name}", "sufficiency", phase,
+                           context={"service": service, "kind": kind, "track": track, "brake": brake})
+                out.append(timed(r, formula, lemmas.named(), timeout_ms))
+    return out
+
+
+# -------------------------------------------------------------------------------- integer
+
+
+def integer_results(cfg: Config, d: Declaration, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
+                    progress: Callable[[str], None] = lambda _: None) -> list[Result]:
+    """The shipped integer curves (`braking.curves`, run symbolically) against the real ones."""
+    s, c, a = z3.Reals("speed_cms closing_cms age_ms")
+    domain = [0 <= s, s <= MAX_SPEED_CMS, -MAX_CLOSING_CMS <= c, c <= MAX_TRACK_CLOSING_CMS,
+              0 <= a, a <= cfg.timeout_cycles * cfg.period_ms]
+    out = []
+    reach = q(Fraction(MAX_DISTANCE_DM, 10))
+    for service in (False, True):
+        for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
+            t0 = time.perf_counter()
+            paths = symbolic.explore(braking.curves, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,
+                                                      "closing_cms": c, "age_ms": a, "service": service}, domain,
+                                     timeout_ms=EXPLORE_TIMEOUT_MS)
+            explored = time.perf_counter() - t0
+            real = real_curves(d, s / 100, c / 100, a / 1000, track, brake, service)
+            names = ("ebi",) if service else CURVES
+            proved_facts = [[] for _ in paths]       # per path: curves already proved there (sound hypotheses)
+            for name in names:
+                label = "alpha1" if service else name.upper()
+                r = Result(f"integer {label} >= real, {cond} ({len(paths)} paths of braking.curves)", "integer",
+                           f"braking.curves().{name}_dm", context={"curve": name, "service": service,
+                                                                    "track": track, "brake": brake})
+                t1 = time.perf_counter()
+                status, model = "proved", None
+                for i, p in enumerate(paths):
+                    rounded = getattr(p.value, f"{name}_dm") / 10
+                    # shorter than the real curve, where that matters: below the farthest distance the
+                    # core ever compares a curve with (a voted or remembered obstacle is never farther)
+                    st, m = refute(z3.And(*domain, *p.condition, *p.side, *proved_facts[i], rounded < getattr(real, name),
+                                          rounded < reach), timeout_ms)
+                    if st == "proved":
+                        proved_facts[i].append(z3.Or(rounded >= getattr(real, name), rounded >= reach))
+                    if st != "proved":
+                        status, model = st, m
+                        if model is not None:
+                            r.model = {"speed": value(model, s) / 100, "closing_speed": value(model, c) / 100,
+                                       "report_age": value(model, a) / 1000, "integer_m": value(model, rounded),
+                                       "real_m": value(model, getattr(real, name))}
+                        break
+                r.status = status
+                r.seconds = time.perf_counter() - t1 + explored / len(names)
+                out.append(r)
+            progress(f"physics: integer curves, {'service' if service else 'emergency'}, {cond}: "
+                     f"{len(paths)} paths, {time.perf_counter() - t0:.1f} s")
+    return out
+
+
+def check_all(cfg: Config, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
+              progress: Callable[[str], None] = lambda _: None) -> list[Result]:
+    d = Declaration.of(cfg)
+    out = invariant_results(d, timeout_ms)
+    progress(f"physics: {len(out)} differential invariants")
+    suff = sufficiency_results(d, timeout_ms)
+    progress(f"physics: {len(suff)} sufficiency obligations")
+    return out + suff + integer_results(cfg, d, braking, timeout_ms, progress)

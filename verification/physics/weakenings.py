@@ -1,0 +1,95 @@
+"""Planted weakenings of the curves (issue 30 item 5): the proof must fail on each, and its
+counterexample must collide in co-simulation with a monitor FMU built from the weakened C.
+
+Each weakening is the same small edit to the shipped Python (monitor/core/braking.py) and C
+(fmu/c/core/rg_core.c), written as text replacements so that the proof runs on the weakened
+source itself, not on a model of it. An edit that no longer applies (the shipped code
+changed) is an error, never a silent pass.
+"""
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+REPO = Path(__file__).resolve().parents[2]
+BRAKING_PY = REPO / "monitor" / "core" / "braking.py"
+CORE_DIR = REPO / "fmu" / "c" / "core"
+
+
+class WeakeningError(RuntimeError):
+    """A weakening's edit does not apply to the shipped source any more."""
+
+
+@dataclass(frozen=True)
+class Weakening:
+    name: str
+    what: str
+    python: tuple          # ((old, new), ...) in braking.py
+    c: tuple               # ((old, new), ...) in rg_core.c
+
+
+WEAKENINGS = (
+    Weakening("traction-dropped", "the traction term of the reaction phase dropped (a1 = g grad only)",
+              (("    a1 = cfg.max_accel_mms2 + g\n", "    a1 = g\n"),),
+              (("    a1 = (int64_t)cfg->max_accel_mms2 + g;", "    a1 = g;"),)),
+    Weakening("speed-error-ignored", "the speed error ignored (v_max = the measured speed)",
+              (("    v_max = -(-speed_cms * (1000 + e) // 1000)\n", "    v_max = speed_cms\n"),),
+              (("    const int64_t v_max = (v * (1000 + e) + 999) / 1000;", "    const int64_t v_max = v;"),)),
+    Weakening("gradient-uphill", "the gradient taken uphill (g grad added to the brakes, taken from traction)",
+              (("    g = gradient_accel_mms2(cfg.max_gradient_permille)\n",
+                "    g = -gradient_accel_mms2(cfg.max_gradient_permille)\n"),),
+              (("    const int64_t g = rg_gradient_accel_mms2(cfg->max_gradient_permille);",
+                "    const int64_t g = -rg_gradient_accel_mms2(cfg->max_gradient_permille);"),)),
+    Weakening("buildup-halved", "the brake's equivalent build-up halved",
+              (("(cfg.service_buildup_ms if service else cfg.emergency_buildup_ms), g",
+                "(cfg.service_buildup_ms if service else cfg.emergency_buildup_ms) // 2, g"),),
+              (("    const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;",
+                "    const int64_t buildup = (service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms) / 2;"),)),
+    Weakening("oncoming-ignored", "the oncoming obstacle's travel left out of EBI",
+              (("    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, t1 + t2 + t3)\n",
+                "    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm\n"),),
+              (("    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3);",
+                "    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm;"),)),
+)
+
+
+def by_name(name: str) -> Weakening:
+    for w in WEAKENINGS:
+        if w.name == name:
+            return w
+    raise WeakeningError(f"no weakening {name!r}; known: {', '.join(w.name for w in WEAKENINGS)}")
+
+
+def edit(text: str, edits: tuple, where: str) -> str:
+    for old, new in edits:
+        if text.count(old) != 1:
+            raise WeakeningError(f"{where}: the weakening's edit does not apply (expected once: {old.strip()!r})")
+        text = text.replace(old, new)
+    return text
+
+
+def weakened_braking(w: Weakening) -> ModuleType:
+    """monitor/core/braking.py with the weakening applied, as a module of its own package
+    (its relative imports resolve as the shipped one's do)."""
+    name = f"monitor.core._braking_{w.name.replace('-', '_')}"
+    spec = importlib.util.spec_from_loader(name, loader=None, origin=str(BRAKING_PY))
+    module = importlib.util.module_from_spec(spec)
+    module.__package__ = "monitor.core"
+    source = edit(BRAKING_PY.read_text(), w.python, "monitor/core/braking.py")
+    sys.modules[name] = module
+    exec(compile(source, f"{BRAKING_PY} ({w.name})", "exec"), module.__dict__)   # noqa: S102 - our own source, edited
+    return module
+
+
+def weakened_core(w: Weakening, folder: Path) -> Path:
+    """A copy of fmu/c/core with the weakening applied to rg_core.c."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for path in CORE_DIR.glob("*.[ch]"):
+        shutil.copy(path, folder / path.name)
+    core = folder / "rg_core.c"
+    core.write_text(edit(core.read_text(), w.c, "fmu/c/core/rg_core.c"))
+    return folder
