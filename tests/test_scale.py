@@ -64,6 +64,22 @@ def test_campaign_cli_world_train_worse_than_declared_is_unsafe_and_readme_comma
     assert data["world_train"]["brake_delay"] == 1.5 and data["workers"] == 2
     failed = [c["name"] for c in data["checks"] if not c["passed"]]
     assert any("could stop for" in name for name in failed)
+    # issue 30 item 8: worse (2.0 s of dead time) must not pass where 1.5 s fails: its collisions
+    # are all unavoidable for it, but a train at the declaration's corner would have avoided some
+    worse = tmp_path / "worse.toml"
+    worse.write_text(weak.read_text().replace("brake_delay = 1.5", "brake_delay = 2.0"))
+    assert "brake_delay = 2.0" in worse.read_text()
+    res = _railguard("campaign", "--quick", "--world-train", str(worse), "--workers", "2", "--json",
+                     "--out", str(tmp_path / "worse"))
+    assert res.returncode == 1, res.stderr[-2000:]
+    worse_data = json.loads(res.stdout)
+    check = next(c for c in worse_data["checks"] if "outside the braking declaration" in c["name"])
+    assert not check["passed"] and worse_data["unsafe"] == 0
+    assert [b.split(":")[0] for b in check["details"]["broken"]] == ["emergency_decel", "service_decel",
+                                                                      "emergency_buildup_s"]
+    assert "a train at the declaration's corner would have avoided" in check["figure"]
+    named = next(c for c in data["checks"] if "outside the braking declaration" in c["name"])
+    assert "emergency_buildup_s" in named["figure"]          # the 1.5 s train's report names its bounds too
     # the README's command, exactly as written (human output), on the shipped declaration
     good = subprocess.run(["railguard", "campaign", "--quick"], capture_output=True, text=True, timeout=600,
                           cwd=tmp_path)

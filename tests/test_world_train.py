@@ -98,3 +98,37 @@ def test_world_train_files(tmp_path):
         with pytest.raises(wt.WorldTrainError) as err:
             wt.load(bad)
         assert str(bad) in str(err.value) and words in str(err.value)
+
+
+def test_broken_bounds_names_each_declared_bound_a_world_train_breaks():
+    """Issue 30 item 8: the world train against the declaration, key by key (the physics
+    model's reading of it); corners and draws inside break nothing, every worse value is named."""
+    cfg = Config()
+    assert all(wt.broken_bounds(c, cfg) == [] for c in wt.corners(cfg))
+    assert not any(wt.broken_bounds(wt.within(cfg, random.Random(i)), cfg) for i in range(200))
+    corner = wt.corners(cfg)[0]
+    worse = {
+        "emergency_decel": dict(emergency_decel=((0.0, 2.4), (30.0, 2.1))),     # band 2 a little weak only
+        "service_decel": dict(service_decel=0.79),
+        "emergency_buildup_s": dict(brake_delay=0.6, brake_buildup=0.9),         # 0.6 + 0.45 = 1.05 s
+        "traction_cutoff_s": dict(traction_cutoff=0.9),
+        "max_accel": dict(max_traction=0.6),
+        "max_downhill_gradient": dict(gradient=-21.0),
+        "speed_error": dict(speed_error=0.03),
+    }
+    for key, change in worse.items():
+        broken = wt.broken_bounds(wt.replace(corner, **change), cfg)
+        assert [b.split(":")[0] for b in broken] == [key], (key, broken)
+    assert wt.broken_bounds(wt.replace(corner, gradient=30.0, speed_error=0.0), cfg) == []   # uphill, exact: better
+
+
+def test_a_collision_beyond_the_declaration_is_told_apart_from_an_unavoidable_one():
+    """A train braking 1.0 m/s^2 after 2.0 s cannot stop for the crossing vehicle once it is in
+    range (the world calls it unavoidable); a train at the declaration's corner could have."""
+    from verification import campaign as cp
+
+    awful = wt.WorldTrain(emergency_decel=((0.0, 1.0),), service_decel=0.5, brake_delay=2.0, brake_buildup=0.0)
+    res = cp.simulate(cp.RunSpec((), "crossing-500m-30", 0, "m2"), world=awful)
+    assert res["collision"] and res["unavoidable"] and res["beyond_declaration"] and not res["unsafe"]
+    inside = cp.simulate(cp.RunSpec((), "crossing-500m-30", 0, "m2"), world=wt.corners(Config())[0])
+    assert not inside["collision"] and not inside["beyond_declaration"]

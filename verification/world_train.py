@@ -277,6 +277,39 @@ def within(cfg, rng: random.Random) -> WorldTrain:
                    sensor_latency_s=round(0.01 * rng.random(), 4), output_latency_s=round(0.01 * rng.random(), 4))
 
 
+def broken_bounds(world: WorldTrain, cfg) -> list[str]:
+    """The braking declaration's bounds (the Config's, read as the physics model reads them:
+    verification/physics/model.py) that this world's train breaks, key by key; [] inside."""
+    from fractions import Fraction
+
+    from .physics.model import Declaration
+
+    d = Declaration.of(cfg)
+    out = []
+    declared = lambda v: float([a for lo, a in d.bands if v >= lo][-1])  # noqa: E731
+    points = sorted({0.0, 120.0, *(float(lo) for lo, _ in d.bands), *(lo for lo, _ in world.emergency_decel)})
+    points = sorted({p for v in points for p in (v, max(0.0, v - 1e-6))})
+    worst = next((v for v in points if world.emergency_at(v) < declared(v) - 1e-9), None)
+    if worst is not None:
+        out.append(f"emergency_decel: {world.emergency_at(worst):g} m/s^2 at {worst:g} m/s, below the declared "
+                   f"{declared(worst):g}")
+    if world.service_decel < float(d.service_decel) - 1e-9:
+        out.append(f"service_decel: {world.service_decel:g} m/s^2, below the declared {float(d.service_decel):g}")
+    if Fraction(world.equivalent_buildup_s()).limit_denominator(10**6) > d.emergency_buildup:
+        out.append(f"emergency_buildup_s: brake_delay + brake_buildup / 2 = {world.equivalent_buildup_s():g} s, above "
+                   f"the declared {float(d.emergency_buildup):g}")
+    if world.traction_cutoff > float(d.traction_cutoff) + 1e-9:
+        out.append(f"traction_cutoff_s: {world.traction_cutoff:g} s, above the declared {float(d.traction_cutoff):g}")
+    if world.traction_cutoff > 0 and world.max_traction > float(d.max_accel) + 1e-9:
+        out.append(f"max_accel: traction {world.max_traction:g} m/s^2, above the declared {float(d.max_accel):g}")
+    if -world.gradient > float(d.max_gradient) * 1000 + 1e-9:
+        out.append(f"max_downhill_gradient: {-world.gradient:g} per mille downhill, beyond the declared "
+                   f"{float(d.max_gradient) * 1000:g}")
+    if world.speed_error > float(d.speed_error) + 1e-9:
+        out.append(f"speed_error: {world.speed_error:g}, above the declared {float(d.speed_error):g}")
+    return out
+
+
 CORNER_SHARE = 4     # one run in CORNER_SHARE runs on a corner train (alternating the two corners)
 
 

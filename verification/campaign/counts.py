@@ -16,14 +16,15 @@ def aggregate(results: list[dict]) -> dict:
     """Counts over core-level runs: totals, per fault kind (single and in pairs), per
     scenario, per (fault kind, scenario), detection per kind."""
     def blank():
-        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "unavoidable": 0, "crashes": 0, "collisions": 0, "false_braking": 0,
-                "brake_without_obstacle": 0}
+        return {"runs": 0, "unsafe": 0, "unsafe_runs": 0, "unavoidable": 0, "beyond_declaration": 0, "crashes": 0,
+                "collisions": 0, "false_braking": 0, "brake_without_obstacle": 0}
 
     def add(cell, r):
         cell["runs"] += 1
         cell["unsafe"] += bool(r["unsafe"])
         cell["unsafe_runs"] += bool(r["unsafe"])
         cell["unavoidable"] += bool(r.get("unavoidable"))
+        cell["beyond_declaration"] += bool(r.get("beyond_declaration"))
         cell["crashes"] += r["crash"] is not None
         cell["collisions"] += bool(r["collision"])
         cell["false_braking"] += bool(r["false_braking"])
@@ -78,6 +79,7 @@ def aggregate(results: list[dict]) -> dict:
     runs = max(1, total["runs"])
     return {
         "runs": total["runs"], "unsafe": total["unsafe_runs"], "unavoidable": total["unavoidable"],
+        "beyond_declaration": total["beyond_declaration"],
         "crashes": total["crashes"], "collisions": total["collisions"], "false_braking": total["false_braking"],
         "false_braking_rate": total["false_braking"] / runs, "brake_without_obstacle": total["brake_without_obstacle"],
         "brake_without_obstacle_rate": total["brake_without_obstacle"] / runs,

@@ -37,6 +37,12 @@ def checks(summary: dict) -> list[Check]:
               core["unsafe"] == 0,
               f"{core['unsafe']} unsafe runs in {core['runs']:,} runs ({core['collisions']} collisions, "
               f"{core['unavoidable']} unavoidable)", {"examples": core["unsafe_examples"]}),
+        Check("campaign: a world train outside the braking declaration causes no collision a declared train "
+              "would have avoided", not summary.get("world_broken_bounds") or core.get("beyond_declaration", 0) == 0,
+              (f"the world's train breaks {'; '.join(summary['world_broken_bounds'])}; "
+               f"{core.get('beyond_declaration', 0)} of its {core['collisions']} collisions a train at the "
+               "declaration's corner would have avoided") if summary.get("world_broken_bounds")
+              else "the world's train lies inside the declaration", {"broken": summary.get("world_broken_bounds", [])}),
         Check("campaign: no crash or exception (core-level runs)", core["crashes"] == 0,
               f"{core['crashes']} crashes in {core['runs']:,} runs", {"examples": core["crash_examples"]}),
     ]

@@ -44,6 +44,7 @@ def run(quick: bool, progress: Progress, *, bus: bool = True, vcan_runs: bool = 
     progress(f"campaign: core runs done in {core['seconds']:.0f} s: {core['unsafe']} unsafe, {core['crashes']} crashes")
     summary = {"mode": "quick" if quick else "full", "core": core, "config": cfg._asdict(), "ghost": ghost_summary(ghosts),
                "world_train": world_train.as_dict(world), "margin_m": margin_m,
+               "world_broken_bounds": world_train.broken_bounds(world, cfg) if world else [],
                "runs_digest": runs_digest(results + ghosts)}
 
     bus_runs: list = []

@@ -109,6 +109,7 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     undetected_corrupt = 0
 
     # ---- the world: its own train (not the monitor's declaration), its timing, the obstacles
+    world_given = world is not None
     world = world or world_train.for_run(cfg, spec.key)
     twin = world_train.TrainTwin(world, scen.train.speed_mps, record=True)
     phase_ms = int.from_bytes(hashlib.sha256(f"railguard-campaign/{spec.key}/phase".encode()).digest()[:2], "little") % period
@@ -125,6 +126,9 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
     obstacles = [(o.position_m, o.appear_s, o.speed_mps, OBSTACLE_TYPES.index(o.type)) for o in scen.obstacles]
     in_sight: set = set()           # obstacles that have come into sensor range
     unavoidable: set = set()        # ... when not even an emergency demand at the next cycle stopped the world's train
+    declared_avoidable: set = set() # ... of those, the ones a train at the declaration's corners would have stopped for
+    outside = world_given and bool(world_train.broken_bounds(world, cfg))
+    corners = world_train.corners(cfg) if outside else []
     closest: dict = {}              # obstacle -> smallest gap, metres
 
     def nearest(at: float, position: float):
@@ -162,6 +166,9 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
             in_sight.add(near[3])
             if started and not twin.can_stop_for(near[0], near[1], applied_before):
                 unavoidable.add(near[3])
+                if corners and all(world_train.TrainTwin(c, twin.speed).can_stop_for(near[0], near[1], applied_before)
+                                   for c in corners):
+                    declared_avoidable.add(near[3])
 
         # ---- sensors (what they saw seen_ago_s before this tick, received phase_ms before it), faults, frames, latch
         stamp = max(0, tick - phase_ms)
@@ -365,6 +372,8 @@ def _simulate(spec: RunSpec, cfg: Config, table_bytes: Optional[bytes], keep_tra
                                                   "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
                                                   "margin_m": margin_m, "world": world.describe()},
         "unavoidable": bool(collision and collided_with in unavoidable),
+        # a collision this (undeclared) world's train could not avoid, but a declared one would have
+        "beyond_declaration": bool(collision and collided_with in declared_avoidable),
         "crash": None, "core_exceptions": core_exceptions, "undecodable": receiver.rejected.get("undecodable", 0),
         "collision": collision, "impact_speed_mps": None if impact_speed is None else round(impact_speed, 2),
         "false_braking": false_braking, "brake_without_obstacle": without, "braked": braked, "entered": started,
