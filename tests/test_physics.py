@@ -147,7 +147,7 @@ def test_verify_physics_cli_proves_everything_and_catches_every_weakening(physic
     names = [c["name"] for c in data["checks"]]
     obligations_run = [c for c in data["checks"] if c["name"].startswith("physics [")]
     assert len(obligations_run) > 150                        # three declarations, every obligation one entry
-    assert {c["details"]["kind"] for c in obligations_run} == {"dI", "sufficiency", "integer"}
+    assert {c["details"]["kind"] for c in obligations_run} == {"dI", "sufficiency", "cycle", "integer"}
     assert {c["details"]["declaration"] for c in obligations_run} == {
         "papers' train (shipped)", "examples/braking-one-band.toml", "examples/braking-three-bands.toml"}
     for w in weakenings.WEAKENINGS:
@@ -181,3 +181,16 @@ def test_verify_physics_refuses_a_bad_declaration_in_one_line(tmp_path):
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert "gradient" in proc.stderr or "decel" in proc.stderr
+
+
+def test_one_period_late_is_collision_free_but_not_margin_keeping_and_needs_the_speed_error():
+    """Issue 30 item 4's one-cycle step, and a finding: the curves do not count the sampling
+    period. With the shipped 2 % speed error, an emergency first demanded one period inside EBI
+    never collides (proved) but may end inside the standstill margin; a declaration without
+    speed error collides (Z3's counterexample, at about 31-38 m/s)."""
+    d = Declaration.of(Config())
+    assert obligations.late_demand_results(d)[0].proved
+    assert obligations.refute(obligations.late_demand(d, below=d.margin)[0])[0] == "refuted"
+    exact = Declaration.of(Config()._replace(speed_error_permille=0))
+    status, model_ = obligations.refute(obligations.late_demand(exact)[0])
+    assert status == "refuted" and model_ is not None
