@@ -163,3 +163,21 @@ def test_a_train_a_little_worse_than_declared_collides(curves_loop, worse):
         world = replace(hard, dead_s=worse["dead_s"])
     outcomes, _ = acc.run_cases(curves_loop, PARAMS, hardest_cases(world))
     assert sum(o.collision for o in outcomes) >= 10
+
+
+def test_the_grid_and_the_proof_agree_on_which_trains_are_inside_the_declaration():
+    """Issue 30: the physics proof holds for every train inside the declaration (broken_bounds
+    == [], the model's reading of it); every grid world is such a train (and the grid has no
+    collision: test_no_collision_in_the_grid), and the worlds that collide break a bound."""
+    from verification import world_train as wt
+
+    def as_world_train(w: acc.World) -> wt.WorldTrain:
+        return wt.WorldTrain(emergency_decel=w.bands, service_decel=w.service_decel, brake_delay=w.dead_s,
+                             brake_buildup=w.ramp_s, traction_cutoff=w.traction_s, max_traction=w.max_traction,
+                             gradient=w.gradient, speed_error=w.speed_error)
+
+    cfg = apply(Config(), VALUES)
+    assert all(wt.broken_bounds(as_world_train(w), cfg) == [] for w in acc.grid_worlds(VALUES))
+    hard = acc.hardest_world(VALUES)
+    for worse in (replace(hard, bands=tuple((s, a * 0.9) for s, a in hard.bands)), replace(hard, dead_s=1.75)):
+        assert wt.broken_bounds(as_world_train(worse), cfg)
