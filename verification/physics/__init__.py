@@ -49,9 +49,24 @@ def prove(cfg: Config, progress: Callable[[str], None] = lambda _: None, braking
     return obligations.check_all(cfg, braking or shipped, progress=progress)
 
 
-def weakening_runs(cfg: Config, out_dir: Path, progress: Callable[[str], None], replay_all: bool = True) -> list[dict]:
+def weakening_runs(cfg: Config, out_dir: Path, progress: Callable[[str], None], replay_all: bool = True,
+                   cluster=None) -> list[dict]:
     """Each planted weakening: the obligation it fails, and its counterexample replayed in
-    co-simulation against the weakened and the shipped monitor."""
+    co-simulation against the weakened and the shipped monitor (one dask task each)."""
+    from ..scale import Cluster, map_ordered
+    from . import weakenings
+
+    jobs = [(w.name, cfg, Path(out_dir), replay_all) for w in weakenings.WEAKENINGS]
+    rows = map_ordered(weakening_run, jobs, cluster or Cluster(), progress=progress, label="physics: weakenings",
+                       unit="weakenings")
+    for row in rows:
+        progress(f"physics: weakening {row['weakening']}: {'caught' if row['caught'] else 'NOT caught'}"
+                 + (f", replay {row['replay']['weakened']['outcome']}" if row["replay"] else ""))
+    return rows
+
+
+def weakening_run(job: tuple) -> dict:
+    """One weakening (a dask task): caught by which obligations, and its replay."""
     from fmu import build
     from fmu.acceptance import curves_only_table
     from monitor.tables import read
@@ -59,41 +74,41 @@ def weakening_runs(cfg: Config, out_dir: Path, progress: Callable[[str], None], 
     from . import obligations, replay, weakenings
     from .model import Declaration
 
-    d = Declaration.of(cfg)
-    out = []
-    for w in weakenings.WEAKENINGS:
-        t0 = time.perf_counter()
-        module = weakenings.weakened_braking(w)
-        results = obligations.integer_results(cfg, d, module)
-        failed = [r for r in results if not r.proved]
-        row = {"weakening": w.name, "what": w.what, "caught": bool(failed),
-               "failed": [r.name for r in failed], "replay": None}
-        target = next((r for r in failed if r.context["curve"] == "ebi" and not r.context["service"]
-                       and not r.context["track"] and not r.context["brake"]), None)
-        if target is not None and replay_all:
-            folder = out_dir / "physics" / w.name
-            fmu = build.build_monitor(curves_only_table(read("m1")), 2, folder, name="weakened-monitor.fmu",
-                                      core_dir=weakenings.weakened_core(w, folder / "core"))
-            for oncoming in (False, True):
-                point = replay.worst_point(cfg, module, target, oncoming=oncoming)
-                if point is None:
-                    continue
-                kind = "oncoming" if oncoming else "static"
-                path, figures = replay.write_scenario(cfg, point, module, f"{w.name} ({w.what}): {target.name}, "
-                                                      f"{kind} obstacle", folder / f"{w.name}-{kind}.toml")
-                weak = replay.play(path, fmu, folder / "work")
-                sound = replay.play(path, None, folder / "work")
-                entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
-                         "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
-                if row["replay"] is None or (weak["outcome"] == "collision" and sound["outcome"] != "collision"):
-                    row["replay"] = entry
-                if weak["outcome"] == "collision" and sound["outcome"] != "collision":
-                    break
-        row["seconds"] = time.perf_counter() - t0
-        progress(f"physics: weakening {w.name}: {'caught' if row['caught'] else 'NOT caught'}"
-                 + (f", replay {row['replay']['weakened']['outcome']}" if row["replay"] else ""))
-        out.append(row)
-    return out
+    name, cfg, out_dir, replay_all = job
+    w = weakenings.by_name(name)
+    t0 = time.perf_counter()
+    module = weakenings.weakened_braking(w)
+    failed = [r for r in obligations.integer_results(cfg, Declaration.of(cfg), module) if not r.proved]
+    row = {"weakening": w.name, "what": w.what, "caught": bool(failed), "failed": [r.name for r in failed],
+           "replay": None}
+    target = next((r for r in failed if r.context["curve"] == "ebi" and not r.context["service"]
+                   and not r.context["track"] and not r.context["brake"]), None)
+    if target is not None and replay_all:
+        folder = out_dir / "physics" / w.name
+        fmu = build.build_monitor(curves_only_table(read("m1")), 2, folder, name="weakened-monitor.fmu",
+                                  core_dir=weakenings.weakened_core(w, folder / "core"))
+        for oncoming in (False, True):
+            point = replay.worst_point(cfg, module, target, oncoming=oncoming)
+            if point is None:
+                continue
+            kind = "oncoming" if oncoming else "static"
+            path, figures = replay.write_scenario(cfg, point, module, f"{w.name} ({w.what}): {target.name}, "
+                                                  f"{kind} obstacle", folder / f"{w.name}-{kind}.toml")
+            weak = replay.play(path, fmu, folder / "work")
+            sound = replay.play(path, None, folder / "work")
+            entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
+                     "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
+            if row["replay"] is None or (weak["outcome"] == "collision" and sound["outcome"] != "collision"):
+                row["replay"] = entry
+            if weak["outcome"] == "collision" and sound["outcome"] != "collision":
+                break
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def prove_task(job: tuple) -> list:
+    """One declaration's obligations (a dask task)."""
+    return prove(job[1])
 
 
 def markdown(proofs: list[tuple[str, list]], weak: list[dict]) -> str:
@@ -109,17 +124,22 @@ def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
     `--part physics`, about two minutes)."""
     from ..report import Check, Section
 
+    from ..scale import Cluster, map_ordered
+
     out_dir = Path(out_dir)
     checks, proofs = [], []
-    for label, cfg in declarations(config, quick):
-        progress(f"physics: {label}")
-        results = prove(cfg, progress)
+    todo = declarations(config, quick)
+    cluster = Cluster(min(len(todo), Cluster().size()))
+    for (label, _), results in zip(todo, map_ordered(prove_task, todo, cluster, progress=progress,
+                                                     label="physics: declarations", unit="declarations")):
+        progress(f"physics: {label}: {sum(r.proved for r in results)} of {len(results)} obligations proved "
+                 f"({sum(r.seconds for r in results):.1f} s of Z3)")
         proofs.append((label, results))
         for r in results:
             checks.append(Check(f"physics [{label}] {r.name}", r.proved, f"{r.status} in {r.seconds:.2f} s",
                                 {"kind": r.kind, "phase": r.phase, "status": r.status, "seconds": round(r.seconds, 3),
                                  "counterexample": r.model, "declaration": label}))
-    weak = weakening_runs(config or Config(), out_dir, progress, replay_all=not quick)
+    weak = weakening_runs(config or Config(), out_dir, progress, replay_all=not quick)   # a worker per core
     for row in weak:
         checks.append(Check(f"physics: planted weakening {row['weakening']} is caught", row["caught"],
                             "fails " + (row["failed"][0] if row["failed"] else "nothing"), row))
