@@ -85,8 +85,11 @@ def weakening_run(job: tuple) -> dict:
                    and not r.context["track"] and not r.context["brake"]), None)
     if target is not None and replay_all:
         folder = out_dir / "physics" / w.name
-        fmu = build.build_monitor(curves_only_table(read("m1")), 2, folder, name="weakened-monitor.fmu",
+        table = curves_only_table(read("m1"))            # the scenarios' table too (replay.write_scenario)
+        fmu = build.build_monitor(table, 2, folder, name="weakened-monitor.fmu",
                                   core_dir=weakenings.weakened_core(w, folder / "core"))
+        shipped = build.build_monitor(table, 2, folder, name="shipped-monitor.fmu")
+        train = build.build_train(folder)
         for oncoming in (False, True):
             point = replay.worst_point(cfg, module, target, oncoming=oncoming)
             if point is None:
@@ -94,8 +97,7 @@ def weakening_run(job: tuple) -> dict:
             kind = "oncoming" if oncoming else "static"
             path, figures = replay.write_scenario(cfg, point, module, f"{w.name} ({w.what}): {target.name}, "
                                                   f"{kind} obstacle", folder / f"{w.name}-{kind}.toml")
-            weak = replay.play(path, fmu, folder / "work")
-            sound = replay.play(path, None, folder / "work")
+            weak, sound = replay.play(path, fmu, train), replay.play(path, shipped, train)
             entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
                      "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
             if row["replay"] is None or (weak["outcome"] == "collision" and sound["outcome"] != "collision"):

@@ -100,16 +100,26 @@ def pos(x):
     return z3.If(x > 0, x, 0)
 
 
-def band_sums(bands: tuple, decels: list, u) -> tuple:
-    """(distance, time) to brake from speed u to standstill when band i decelerates at
-    decels[i]: for each band [lo, hi) below u, (top^2 - lo^2) / 2 d and (top - lo) / d."""
-    dist, time = z3.RealVal(0), z3.RealVal(0)
+def band_top(bands: tuple, i: int, u):
+    """The speed at which braking from u enters band i (u, or the band's upper end)."""
+    return u if i + 1 == len(bands) else z3.If(u < q(bands[i + 1][0]), u, q(bands[i + 1][0]))
+
+
+def band_terms(bands: tuple, decels: list, u) -> list:
+    """[(distance, time), ...] braking from speed u spends in each band [lo, hi) when band i
+    decelerates at decels[i]: (top^2 - lo^2) / 2 d and (top - lo) / d, 0 above u."""
+    out = []
     for i, (lo, _) in enumerate(bands):
-        top = u if i + 1 == len(bands) else z3.If(u < q(bands[i + 1][0]), u, q(bands[i + 1][0]))
-        inside = u > q(lo)
-        dist = dist + z3.If(inside, (top * top - q(lo) * q(lo)) / (2 * decels[i]), 0)
-        time = time + z3.If(inside, (top - q(lo)) / decels[i], 0)
-    return dist, time
+        top, inside = band_top(bands, i, u), u > q(lo)
+        out.append((z3.If(inside, (top * top - q(lo) * q(lo)) / (2 * decels[i]), 0),
+                    z3.If(inside, (top - q(lo)) / decels[i], 0)))
+    return out
+
+
+def band_sums(bands: tuple, decels: list, u) -> tuple:
+    """(distance, time) to brake from speed u to standstill (the sums of band_terms)."""
+    terms = band_terms(bands, decels, u)
+    return z3.Sum([x for x, _ in terms]), z3.Sum([t for _, t in terms])
 
 
 @dataclass

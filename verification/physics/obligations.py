@@ -28,7 +28,8 @@ from monitor.core.config import Config
 from monitor.core.types import MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS
 
 from . import symbolic
-from .model import (G, MAX_TRACK_CLOSING_CMS, MAX_UPHILL, Declaration, band_sums, invariant_obligation, phase_invariants, pos,
+from .model import (G, MAX_TRACK_CLOSING_CMS, MAX_UPHILL, Declaration, band_sums, band_terms, band_top,
+                    invariant_obligation, phase_invariants, pos,
                     q, real_curves)
 
 CONDITIONS = ((0, 0, "normal"), (1, 0, "slippery"), (0, 1, "degraded"), (1, 1, "slippery+degraded"))
@@ -132,9 +133,7 @@ class Lemmas:
         self.braking = [self.xb == z3.Sum(self.band_x), self.tb == z3.Sum(self.band_t)]
         for i, ((lo, _), di) in enumerate(zip(self.brakes, self.dec)):
             net = di - self.gg
-            top = self.v2 if i + 1 == len(self.brakes) else z3.If(self.v2 < q(self.brakes[i + 1][0]), self.v2,
-                                                                 q(self.brakes[i + 1][0]))
-            inside = self.v2 > q(lo)
+            top, inside = band_top(self.brakes, i, self.v2), self.v2 > q(lo)
             # the band's dI bounds, entered at top and left at lo, multiplied out (net > 0)
             self.braking += [z3.If(inside, z3.And(2 * net * self.band_x[i] <= top * top - q(lo) * q(lo),
                                                   net * self.band_t[i] <= top - q(lo), self.band_x[i] >= 0,
@@ -143,13 +142,9 @@ class Lemmas:
         self.closed = pos(w0) * (self.t1 + self.t2 + self.tb)
         # each band's distance and time at the declared deceleration (worst gradient), from the true v2
         gg_max = q(G * d.max_gradient)
-        self.bound_x, self.bound_t = [], []
-        for i, (lo, a) in enumerate(self.brakes):
-            declared = q(a * d.factor(track, brake)) - gg_max
-            top = self.v2 if i + 1 == len(self.brakes) else z3.If(self.v2 < q(self.brakes[i + 1][0]), self.v2,
-                                                                 q(self.brakes[i + 1][0]))
-            self.bound_x.append(z3.If(self.v2 > q(lo), (top * top - q(lo) * q(lo)) / (2 * declared), 0))
-            self.bound_t.append(z3.If(self.v2 > q(lo), (top - q(lo)) / declared, 0))
+        self.declared_net = [q(a * d.factor(track, brake)) - gg_max for _, a in self.brakes]
+        terms = band_terms(self.brakes, self.declared_net, self.v2)
+        self.bound_x, self.bound_t = [x for x, _ in terms], [t for _, t in terms]
 
     def sum_step(self) -> object:
         """The bands' bounds add up (linear): each band within its bound b_i (the band steps),
@@ -176,9 +171,7 @@ class Lemmas:
 
     def declared(self) -> tuple:
         """(distance, time) to brake from v2 at the declared decelerations (worst gradient)."""
-        gg_max = q(G * self.d.max_gradient)
-        net = [q(a * self.d.factor(self.track, self.brake)) - gg_max for _, a in self.brakes]
-        return band_sums(self.brakes, net, self.v2)
+        return z3.Sum(self.bound_x), z3.Sum(self.bound_t)
 
     def steps(self) -> list[tuple[str, str, object]]:
         """(name, phase, formula to refute) of the steps that do not depend on the obstacle."""
@@ -200,9 +193,7 @@ class Lemmas:
                         "deceleration's", "braking",
                         z3.And(*base, *net_ok, self.v2 >= 0, *self.braking,
                                z3.Or(self.band_x[i] > self.bound_x[i], self.band_t[i] > self.bound_t[i]))))
-        gg_max = q(G * self.d.max_gradient)
-        s_u, t_u = band_sums(self.brakes, [q(a * self.d.factor(self.track, self.brake)) - gg_max
-                                           for _, a in self.brakes], u)
+        s_u, t_u = band_sums(self.brakes, self.declared_net, u)
         out.append(("braking: the declared bands' distance and time grow with the speed (up to the curve's v2)",
                     "braking", z3.And(*base, 0 <= self.v2, self.v2 <= u, z3.Or(s_decl > s_u, t_decl > t_u))))
         out.append(("braking: the bands add up to within the curve's phase 3", "braking", self.sum_step()))

@@ -134,15 +134,10 @@ def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path:
     return path, figures
 
 
-def play(path: Path, monitor_fmu: Optional[Path], work: Path) -> dict:
-    """Play the scenario in co-simulation (the real FMUs), with `monitor_fmu` or the shipped core."""
-    from fmu import build, cosim, scenario
-    from monitor.tables import read
+def play(path: Path, monitor_fmu: Path, train_fmu: Path) -> dict:
+    """Play the scenario in co-simulation with the real FMUs given."""
+    from fmu import cosim, scenario
 
-    scen = scenario.load(str(path))
-    work.mkdir(parents=True, exist_ok=True)
-    monitor = monitor_fmu or build.build_monitor(read(scen.table or "m2"), 2, work, name="shipped-monitor.fmu")
-    train = build.build_train(work)
-    res = cosim.run_scenario(scen, monitor, train, record=False)
+    res = cosim.run_scenario(scenario.load(str(path)), monitor_fmu, train_fmu, record=False)
     return {"outcome": res.outcome, "margin_m": res.margin_m, "impact_speed": res.impact_speed,
             "first_brake_s": res.first_brake_s, "max_demand": res.max_demand}
