@@ -486,7 +486,7 @@ def coverage_probe(seen: Counter, setup):
                                                    and out.reasons & R_LATCH != 0)
         if out.reasons & R_MEMORY:                 # the remembered obstacle on its own curves
             own = speed * (1000 - cfg.speed_error_permille) // 1000
-            tc = curves(cfg, speed, train.track, train.brake, after.track_closing + own, after.track_age_ms)
+            tc = curves(cfg, speed, train.track, train.brake, after.track_closing + own, 0)
             for name, x in (("EBI", tc.ebi_dm), ("SBI", tc.sbi_dm), ("warning", tc.warning_dm)):
                 seen[f"remembered == {name}"] += out.track_dm == x
                 seen[f"remembered == {name} + 1"] += out.track_dm == x + 1

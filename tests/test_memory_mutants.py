@@ -77,17 +77,19 @@ def test_far_travel_is_the_speed_less_its_error_rounded_down_less_acceleration_n
 
 
 def test_observe_keeps_positions_in_1e5_m_and_the_obstacle_s_own_speed_from_1_cms():
-    # confirmed: 300 dm is 3,000,000 units; an obstacle closing at 1 cm/s keeps its 1 cm/s
-    assert observe(5000000, 5000000, 0, 0, 300, 1, 40, True) == (3000000, 3000000, 1, 40)
-    assert observe(-1, -1, 0, 0, 300, 0, 40, True) == (3000000, 3000000, 0, 40)
-    assert observe(-1, -1, 0, 0, 300, -5, 40, True) == (3000000, 3000000, 0, 40)    # receding: taken to stop
+    # confirmed: 300 dm is 3,000,000 units; an obstacle closing at 1 cm/s keeps its 1 cm/s;
+    # the sighting's age comes back, to be counted once when the position is moved
+    assert observe(5000000, 5000000, 0, 300, 1, 40, True) == (3000000, 3000000, 1, 40)
+    assert observe(-1, -1, 0, 300, 0, 40, True) == (3000000, 3000000, 0, 40)
+    assert observe(-1, -1, 0, 300, -5, 40, True) == (3000000, 3000000, 0, 40)    # receding: taken to stop
     # disputed without a track: nothing is remembered, not even a speed or an age
-    assert observe(-1, -1, 0, 0, 100, 50, 7, False) == (-1, -1, 0, 0)
+    assert observe(-1, -1, 0, 100, 50, 7, False) == (-1, -1, 0, 0)
     # disputed exactly at the remembered position: the track takes the sighting (its age, and
     # its far end, which the train's least travel had moved)
-    assert observe(3000000, 3000050, 20, 100, 300, 0, 300, False) == (3000000, 3000000, 20, 300)
-    # disputed and farther: kept, the faster closing speed of the two
-    assert observe(3000000, 3000050, 20, 100, 301, 30, 300, False) == (3000000, 3000050, 30, 100)
+    assert observe(3000000, 3000050, 20, 300, 0, 300, False) == (3000000, 3000000, 20, 300)
+    # disputed and farther: kept, the faster closing speed of the two, and no age (the kept
+    # position's age was counted when it was moved)
+    assert observe(3000000, 3000050, 20, 301, 30, 300, False) == (3000000, 3000050, 30, 0)
 
 
 def test_forget_leaves_no_evidence_count_behind_when_the_track_goes():
@@ -108,7 +110,7 @@ def test_a_static_obstacle_is_remembered_with_the_train_s_speed_error_as_its_own
     d = normal_driver(Config())
     out = d.cycle(present(d.tick, 3000, closing=V), V)
     assert out.track_state == TRACK_SEEN and out.track_dm == 3000
-    assert d.state.track_closing == 60 and d.state.track_age_ms == 0
+    assert d.state.track_closing == 60
     assert travel(V, 60) == 312349
     assert d.state.track_near == 3000 * U - 312349 and d.state.track_far == 3000 * U
     out = d.clear(V)
@@ -172,21 +174,30 @@ def test_an_invalid_train_state_moves_nothing_towards_passed():
         assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 0
 
 
-def test_a_forgotten_or_passed_track_leaves_no_speed_or_age_behind():
-    """An oncoming obstacle (its own 2000 cm/s) from a report 100 ms old, forgotten after
-    one cycle of evidence (forget_ms = 100): the state keeps no closing speed and no age."""
+def test_a_report_s_age_is_counted_once_and_a_forgotten_or_passed_track_leaves_no_speed_behind():
+    """An oncoming obstacle (its own 2000 cm/s) from a report 100 ms old: the remembered
+    position is moved by the period and the age (200 ms of its closing, at the sighting's
+    speed), once; the next cycle moves it by one period. Forgotten after one cycle of
+    evidence (forget_ms = 100): the state keeps no closing speed."""
     d = normal_driver(Config(forget_ms=100))
     reports = tuple(Report(PRESENT, 1000, 2000, STATIC, d.tick - 100) for _ in range(6))
     d.cycle(reports, 0)
-    assert d.state.track_closing == 2000 and d.state.track_age_ms == 100
+    assert d.state.track_closing == 2000
+    assert d.state.track_near == 1000 * U - travel(0, 2000, period=200)
     out = d.clear(0)
     assert out.track_state == TRACK_FORGOTTEN
-    assert (d.state.track_near, d.state.track_far, d.state.track_closing, d.state.track_age_ms) == (-1, -1, 0, 0)
+    assert (d.state.track_near, d.state.track_far, d.state.track_closing) == (-1, -1, 0)
     d = normal_driver(Config(**EXACT))
     d.cycle(tuple(Report(PRESENT, 0, 500, STATIC, d.tick - 100) for _ in range(6)), 1)
-    assert d.state.track_closing == 499 and d.state.track_age_ms == 100
+    assert d.state.track_closing == 499
     assert d.clear(1).track_state == TRACK_PASSED
-    assert (d.state.track_near, d.state.track_far, d.state.track_closing, d.state.track_age_ms) == (-1, -1, 0, 0)
+    assert (d.state.track_near, d.state.track_far, d.state.track_closing) == (-1, -1, 0)
+    d = normal_driver(Config())
+    d.cycle(tuple(Report(PRESENT, 3000, V, STATIC, d.tick - 200) for _ in range(6)), V)
+    first = 3000 * U - d.state.track_near
+    assert first == travel(V, 60, period=300)                 # the period and the 200 ms age, at 30 m/s
+    d.cycle(clear(d.tick), 1000)                               # braked to 10 m/s: one period at that speed
+    assert 3000 * U - d.state.track_near == first + travel(1000, 60)
 
 
 def test_the_remembered_obstacle_is_supervised_with_its_own_speed_plus_the_train_s():
@@ -252,7 +263,7 @@ def test_the_initial_state_remembers_nothing():
     d = normal_driver(Config())
     start = d.setup.table.start
     assert tuple(initial_state(d.setup)) == (INIT, start, MAINTAIN, 0, (0, 0, 0), 0, 0, 0, 0, (0, 0, 0),
-                                             0, -1, -1, 0, 0, 0, 0, False)
+                                             0, -1, -1, 0, 0, 0, False)
 
 
 def test_the_memory_defaults_are_the_documented_ones():

@@ -215,13 +215,12 @@ class VectorMonitor:
         self.near = np.full(n, NO_TRACK, dtype=I64)
         self.far = np.full(n, NO_TRACK, dtype=I64)
         self.track_closing = np.zeros(n, dtype=I64)
-        self.track_age = np.zeros(n, dtype=I64)
         self.track_cycles = np.zeros(n, dtype=I64)
         self.track_absent = np.zeros(n, dtype=I64)
         self.kept = np.zeros(n, dtype=bool)
         self.m2 = setup.model == "m2"
 
-    def _memory(self, present, dist, speed, toward, own, age) -> tuple:
+    def _memory(self, present, dist, speed, toward, own) -> tuple:
         """Step 4 of the cycle: the track after this cycle's picture. Every PRESENT picture is
         confirmed (it creates or replaces the track); ABSENT with every channel fresh is
         evidence that it is gone. (t_state, remembered, far): the TRACK_* state, whether the
@@ -246,7 +245,6 @@ class VectorMonitor:
         self.near = np.where(present, units, np.where(gone, NO_TRACK, self.near))
         self.far = np.where(gone, NO_TRACK, far)
         self.track_closing = np.where(present, np.maximum(toward - own, 0), np.where(gone, 0, self.track_closing))
-        self.track_age = np.where(present, age, np.where(gone, 0, self.track_age))
         return t_state, kept, far
 
     def step(self, present: np.ndarray, distance_dm: np.ndarray, speed_cms: np.ndarray,
@@ -269,13 +267,13 @@ class VectorMonitor:
         dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
         toward = speed if closing_cms is None else np.where(present, closing_cms, speed).astype(I64)
         own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
-        t_state, remembered, far = self._memory(present, dist, speed, toward, own, age)
+        t_state, remembered, far = self._memory(present, dist, speed, toward, own)
         track_dm = np.where(self.near == NO_TRACK, NO_DISTANCE, self.near // UNITS_PER_DM)
         # the supervised obstacle: the voted one, or the remembered one where no channel shows it
         sup = present | remembered
         sup_dist = np.where(remembered, track_dm, dist)
         sup_toward = np.where(remembered, self.track_closing + own, toward)
-        sup_age = np.where(remembered, self.track_age, age)
+        sup_age = age           # 0 where no channel shows it: a remembered position's age was counted
         c = curves(cfg, speed, track, brake, sup_toward, sup_age)
         env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
         normal = not (track.any() or brake.any())         # then EBI is alpha2 (cycle._table_zone)
@@ -305,10 +303,10 @@ class VectorMonitor:
                "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
                "track_state": t_state, "track_far": far, "table": action, "table_demand": table, "curves": c,
                "alpha1_dm": alpha1, "alpha2_dm": alpha2}
-        # the remembered obstacle moved for the next period, worst case for the train
+        # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
         has = self.near != NO_TRACK
         moved = self.near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.track_closing,
-                                        cfg.period_ms)
+                                        cfg.period_ms + age)
         self.near = np.where(has, np.maximum(moved, 0), NO_TRACK)
         return out
 

@@ -134,6 +134,12 @@ def forget_cycles(cfg: Config) -> int:
     return -(-cfg.forget_ms // cfg.period_ms)
 
 
+def track_accel_mms2(cfg: Config) -> int:
+    """What the train may gain per second, traction plus the steepest downhill (rounded up):
+    the acceleration a remembered obstacle is moved with (memory.near_travel)."""
+    return cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille)
+
+
 def emergency_bands(cfg: Config) -> tuple:
     """((from_cms, decel_mms2), ...) of the emergency brake, lowest speed first."""
     bands = [(0, cfg.emergency_decel_mms2)]

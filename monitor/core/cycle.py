@@ -14,7 +14,7 @@ from typing import NamedTuple
 from . import config as config_mod
 from .config import Config, ConfigurationError
 from .braking import curves, ebi_dm
-from .config import RELEASE_REVOCABLE, forget_cycles, gradient_accel_mms2
+from .config import RELEASE_REVOCABLE, forget_cycles, track_accel_mms2
 from .envelope import combine, hold, keep_held, supervision_demand, table_hold, zone
 from .freshness import channel_status
 from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
@@ -64,8 +64,7 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
     if round(step_s * 1000) != cfg.period_ms:
         raise ConfigurationError(f"table was solved for a time step of {step_s} s but period_ms = {cfg.period_ms}")
     return Setup(cfg, table, model, cfg.timeout_cycles * cfg.period_ms, table.action, table.next,
-                 (1 << cfg.channels) - 1, forget_cycles(cfg),
-                 cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille))
+                 (1 << cfg.channels) - 1, forget_cycles(cfg), track_accel_mms2(cfg))
 
 
 def initial_state(setup: Setup) -> State:
@@ -161,16 +160,17 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         sys_status, distance, sys_error = vote_single(*results[0])
 
     # 4. obstacle memory (memory.py): the remembered obstacle was moved to this cycle at the
-    #    end of the last one (worst case); the train's least travel moves what "passed" reads
+    #    end of the last one (worst case, its report's age included: `t_age` is the age of a
+    #    sighting this cycle, not yet counted); the train's least travel moves what "passed" reads
     speed, track, brake, train_ok = _train(inputs.train)
     err = cfg.speed_error_permille
     own_speed = speed * (1000 - err) // 1000          # the train's share of a closing speed
     toward = speed if closing is None else closing
-    near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, state.track_age_ms
+    near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, 0
     t_cycles, t_absent = 0, 0
     confirmed = distance != NO_DISTANCE and sys_status == PRESENT and not sys_error
     if distance != NO_DISTANCE:
-        near, far, t_closing, t_age = observe(near, far, t_closing, t_age, distance, toward - own_speed, age,
+        near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
                                               confirmed)
         if near == NO_TRACK:
             t_state = TRACK_NONE
@@ -287,12 +287,15 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     error_cycles = _inc(state.error_cycles) if error or stale else state.error_cycles
     cycle = _inc(state.cycle)
-    # the remembered obstacle moved for the next period, worst case for the train
+    # the remembered obstacle moved for the next period, worst case for the train; after a
+    # sighting also for the report's age (the remembered curves count no age: a position is
+    # moved by the age once, at the speed of the cycle that saw it, not at every later and
+    # perhaps slower speed; issue 30 item 4)
     if near != NO_TRACK:
-        near -= near_travel(speed, err, setup.track_accel, t_closing, cfg.period_ms)
+        near -= near_travel(speed, err, setup.track_accel, t_closing, cfg.period_ms + t_age)
         near = near if near > 0 else 0
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
-                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_age, t_cycles, t_absent,
+                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_cycles, t_absent,
                       keep and speed > 0 and held > MAINTAIN)
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state)

@@ -3,7 +3,10 @@
 The last voted obstacle is kept as a track and predicted forward every cycle, worst case for
 the train: a static obstacle stays where it was, a receding one is taken to stop at once, an
 oncoming one keeps closing at its last speed, and the train runs at its measured speed plus
-the speed error, accelerating under traction and downhill. The curves supervise the nearer of
+the speed error, accelerating under traction and downhill. The report's age is counted once, at
+the end of the cycle that saw it, at that cycle's speed: the remembered curves count no age (a
+train that has braked since would otherwise count the age's travel at a lower speed than the
+one it ran at; issue 30 item 4). The curves supervise the nearer of
 the voted and the remembered obstacle (cycle.py), so a blind spell never lowers a demand while
 the train is inside a remembered obstacle's curve.
 
@@ -26,7 +29,7 @@ def accel_run(accel_mms2: int, period_ms: int) -> int:
     """a T^2 / 2 in 1e-5 m, rounded up: what acceleration can add to (or explain away from)
     a period's travel at constant speed.
 
-    pre: 0 <= accel_mms2 <= 10000 and 1 <= period_ms <= 10000
+    pre: 0 <= accel_mms2 <= 10000 and 1 <= period_ms <= 70000
     post: __return__ >= 0
     post: __return__ * 20000 >= accel_mms2 * period_ms * period_ms
     post: (__return__ - 1) * 20000 < accel_mms2 * period_ms * period_ms or __return__ == 0
@@ -35,12 +38,14 @@ def accel_run(accel_mms2: int, period_ms: int) -> int:
 
 
 def near_travel(speed_cms: int, error_permille: int, accel_mms2: int, obstacle_cms: int, period_ms: int) -> int:
-    """The most the gap to a remembered obstacle can shrink in the next period, in 1e-5 m:
-    the train at its measured speed plus the speed error, accelerating at `accel_mms2`
-    (traction plus downhill), and the obstacle closing at its own speed (0 if not oncoming).
+    """The most the gap to a remembered obstacle can shrink in `period_ms` (the next period,
+    and after a sighting also the report's age, which the curves no longer count once the
+    position is remembered), in 1e-5 m: the train at its measured speed plus the speed error,
+    accelerating at `accel_mms2` (traction plus downhill), and the obstacle closing at its
+    own speed (0 if not oncoming).
 
     pre: 0 <= speed_cms <= 12000 and 0 <= error_permille <= 500 and 0 <= accel_mms2 <= 10000
-    pre: 0 <= obstacle_cms <= 15000 and 1 <= period_ms <= 10000
+    pre: 0 <= obstacle_cms <= 15000 and 1 <= period_ms <= 70000
     post: __return__ * 1000 >= speed_cms * (1000 + error_permille) * period_ms + obstacle_cms * period_ms * 1000
     post: __return__ >= speed_cms * period_ms + obstacle_cms * period_ms
     """
@@ -63,9 +68,11 @@ def far_travel(speed_cms: int, error_permille: int, accel_mms2: int, period_ms: 
     return run if run > 0 else 0
 
 
-def observe(near: int, far: int, closing: int, age_ms: int, distance_dm: int, obstacle_cms: int, age_now: int,
+def observe(near: int, far: int, closing: int, distance_dm: int, obstacle_cms: int, age_now: int,
             confirmed: bool) -> tuple[int, int, int, int]:
-    """(near, far, closing, age) of the track after a voted obstacle at `distance_dm`. A
+    """(near, far, closing, age) of the track after a voted obstacle at `distance_dm`; `age`
+    is the age of the report the position came from when this sighting set it (0 when the
+    track kept its position: its age was counted when it was moved, see `near_travel`). A
     confirmed picture (every module sees it, no flag: the 3oo3 vote) creates or replaces the
     track; a disputed one (some channels see it, fresh ones do not) creates none, so a ghost
     on one channel is answered while it is reported but not remembered, and only brings an
@@ -79,6 +86,7 @@ def observe(near: int, far: int, closing: int, age_ms: int, distance_dm: int, ob
     post: not confirmed or __return__[:3] == (distance_dm * 10000, distance_dm * 10000, max(obstacle_cms, 0))
     post: confirmed or near != -1 or __return__ == (-1, -1, 0, 0)
     post: confirmed or near == -1 or (__return__[0] <= near and __return__[2] >= closing)
+    post: __return__[3] in (0, age_now) and (__return__[3] == 0 or __return__[0] == distance_dm * 10000)
     """
     d = distance_dm * UNITS_PER_DM
     own = obstacle_cms if obstacle_cms > 0 else 0
@@ -89,7 +97,7 @@ def observe(near: int, far: int, closing: int, age_ms: int, distance_dm: int, ob
     faster = own if own > closing else closing
     if d <= near:
         return d, d, faster, age_now
-    return near, far, faster, age_ms
+    return near, far, faster, 0
 
 
 def forget(cycles_absent: int, evidence: bool, in_range: bool, passed: bool, forget_cycles: int) -> tuple[int, int]:

@@ -96,7 +96,6 @@ class State(NamedTuple):
     track_near: int = NO_TRACK   # remembered obstacle, worst case (nearest), in 1e-5 m (cm/s x ms)
     track_far: int = NO_TRACK    # the remembered position less the train's least travel (< 0: passed)
     track_closing: int = 0       # the remembered obstacle's own speed towards the train, cm/s (>= 0)
-    track_age_ms: int = 0        # age of the report the remembered distance came from
     track_cycles: int = 0        # cycles since the obstacle was last voted
     track_absent: int = 0        # cycles in a row of positive evidence that it is gone
     kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)

@@ -45,6 +45,11 @@ ASSUMPTIONS = (
     "the measured closing speed is the train's true speed plus the obstacle's own speed towards it",
     "an obstacle keeps a constant speed (a receding one may stop at once; an oncoming one does not speed up)",
     "a demand reaches the brakes within one monitor period (`period_ms`), as measured on CAN",
+    "during a report's age the train ran no faster than the speed error allows around the speed the cycle "
+    "measures, accelerating at most at traction plus the steepest downhill (the age is at most "
+    "`timeout_cycles x period`)",
+    "the monitor runs every period: a remembered obstacle is moved once per period, by the cycle that saw "
+    "the train's speed",
     "the train's equivalent build-up (dead time + half a linear ramp) is at most the declared one",
     "in each speed band the brake decelerates at least as declared, times the adhesion factors the train reports",
     "the gradient is at most `max_downhill_gradient` downhill, and traction at most `max_accel`",

@@ -9,7 +9,9 @@ Three kinds, each named after the phase or the piece of code it covers:
   curve (emergency: EBI; service: the service-brake curve alpha1), obstacle kind (static,
   receding, oncoming) and reported condition (normal, slippery, degraded, both);
 * `integer`: the integer curves of the shipped monitor/core/braking.py, run symbolically
-  (symbolic.py), are never shorter than the real-valued ones, on every path (item 3).
+  (symbolic.py), are never shorter than the real-valued ones, on every path (item 3);
+* `release`: the release rule with the obstacle memory as an inductive invariant over one
+  cycle (release.py, item 4).
 
 An obligation is refuted by a Z3 model (a counterexample), proved when Z3 says unsat, and
 unknown on a timeout; only `proved` counts.
@@ -43,7 +45,7 @@ EXPLORE_TIMEOUT_MS = 2000     # a branch side Z3 cannot rule out this fast is fo
 @dataclass
 class Result:
     name: str
-    kind: str                      # dI, sufficiency, integer
+    kind: str                      # dI, sufficiency, integer, release
     phase: str
     status: str = "unknown"        # proved, refuted, unknown
     seconds: float = 0.0
@@ -103,9 +105,12 @@ class Lemmas:
     """The model's variables and the steps from the phases' dI bounds to "stops short", each a
     formula to refute, named after the phase it covers (the way a KeYmaera proof splits)."""
 
-    def __init__(self, d: Declaration, service: bool, track: int, brake: int, curve_d: Optional[Declaration] = None):
+    def __init__(self, d: Declaration, service: bool, track: int, brake: int, curve_d: Optional[Declaration] = None,
+                 remembered: bool = False):
         """`curve_d`: the declaration the curve is computed from (default `d`, the train's): a
-        test plants a weaker one to see the proof fail."""
+        test plants a weaker one to see the proof fail. `remembered`: the closing speed is the
+        memory's (the remembered own speed, at least the obstacle's, plus the train's least
+        speed), not a measurement: the obstacle's own speed is anything up to it (release.py)."""
         self.d, self.service, self.track, self.brake = d, service, track, brake
         v, v0, c, w0, age, grad, D = z3.Reals("v v0 c w0 age grad D")
         self.v, self.v0, self.c, self.w0, self.age, self.grad, self.D = v, v0, c, w0, age, grad, D
@@ -117,7 +122,8 @@ class Lemmas:
         self.real = real_curves(curve_d or d, v, c, age, track, brake, service)
         self.domain = [0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
                        0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient),
-                       c == v0 + w0, -q(Fraction(MAX_CLOSING_CMS, 100)) <= c,
+                       w0 <= c - v * (1 - e) if remembered else c == v0 + w0,
+                       -q(Fraction(MAX_CLOSING_CMS, 100)) <= c,
                        c <= q(Fraction(MAX_TRACK_CLOSING_CMS, 100))]
         self.domain += [di >= q(a * d.factor(track, brake)) for di, (_, a) in zip(self.dec, self.brakes)]
         self.t1 = age + q(d.period + d.traction_cutoff)
@@ -167,6 +173,8 @@ class Lemmas:
         return out
 
     def kind(self, kind: str) -> list:
+        if kind == "remembered":                   # any own speed up to the remembered one
+            return []
         return [self.w0 == 0] if kind == "static" else [self.w0 < 0] if kind == "receding" else [self.w0 > 0]
 
     def declared(self) -> tuple:
@@ -231,33 +239,6 @@ def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Re
     return out
 
 
-def late_demand(d: Declaration, track: int = 0, brake: int = 0, kind: str = "static", below=None):
-    """(formula to refute, named terms): the monitor samples once a period, so an emergency is
-    first demanded at the first cycle inside EBI, up to one period after the distance that was
-    still outside it: the train runs one period more than EBI counts. Refuted: it ends closer
-    than `below` (default 0: a collision) to the obstacle."""
-    import dataclasses
-
-    lemmas = Lemmas(dataclasses.replace(d, period=2 * d.period), False, track, brake, curve_d=d)
-    s_decl, t_decl = lemmas.declared()
-    gap = lemmas.D - lemmas.x1 - lemmas.x2 - lemmas.xb - lemmas.closed
-    formula = z3.And(*lemmas.domain, *lemmas.kind(kind), *lemmas.reaction, *lemmas.buildup, lemmas.xb <= s_decl,
-                     0 <= lemmas.tb, lemmas.tb <= t_decl, lemmas.D >= lemmas.real.ebi,
-                     gap < (0 if below is None else q(below)))
-    return formula, dict(lemmas.named(), gap=gap)
-
-
-def late_demand_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
-    """The one-cycle step of issue 30 item 4, for a static obstacle under normal conditions:
-    no collision (the standstill margin is not claimed: the curves do not count the sampling
-    period, see docs/proof.md)."""
-    formula, named = late_demand(d)
-    r = Result("one period late (static, normal): an emergency first demanded at the first cycle inside EBI "
-               "still stops short of the obstacle", "cycle", "sampling+reaction+build-up+braking",
-               context={"service": False, "kind": "static", "track": 0, "brake": 0})
-    return [timed(r, formula, named, timeout_ms)]
-
-
 # -------------------------------------------------------------------------------- integer
 
 
@@ -316,6 +297,8 @@ def check_all(cfg: Config, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
     progress(f"physics: {len(out)} differential invariants")
     suff = sufficiency_results(d, timeout_ms)
     progress(f"physics: {len(suff)} sufficiency obligations")
-    late = late_demand_results(d, timeout_ms)
-    progress(f"physics: the one-cycle step: {late[0].status} in {late[0].seconds:.1f} s")
-    return out + suff + late + integer_results(cfg, d, braking, timeout_ms, progress)
+    from .release import release_results
+
+    rel = release_results(cfg, d, timeout_ms)
+    progress(f"physics: the release rule over one cycle: {sum(r.proved for r in rel)} of {len(rel)} proved")
+    return out + suff + rel + integer_results(cfg, d, braking, timeout_ms, progress)

@@ -56,3 +56,21 @@ def _outcome(o: dict) -> str:
     if o["outcome"] == "stopped" and o.get("margin_m") is not None:
         return f"stopped {o['margin_m']:.1f} m short"
     return o["outcome"]
+
+
+def findings_md(found) -> str:
+    """Open findings: steps of a claimed invariant that Z3 refutes on the shipped code, each
+    with its counterexample. They are not checks (nothing here is claimed proved); the
+    test suite requires them refuted until the code is fixed."""
+    rows = [(label, r) for label, rs in found for r in rs if not r.proved]
+    if not rows:
+        return ""
+    md = ["\n### Open findings (refuted on the shipped code, not claimed)\n",
+          "The release rule's one-cycle invariant (issue 30 item 4) fails at one step: outside EBI at one "
+          "cycle, an emergency first demanded at the next does not always stop short of a remembered obstacle, "
+          "because the curves count the demand's period but not the sampling period (docs/proof.md, "
+          "\"The release rule\"). Z3's counterexamples:\n"]
+    keys = ("measured_speed", "closing_speed", "obstacle_speed", "distance", "gap")
+    md.append(md_table(["declaration", "step", *keys],
+                       [[label, r.name, *(f"{r.model.get(k, float('nan')):.4f}" for k in keys)] for label, r in rows]))
+    return "\n".join(md) + "\n"

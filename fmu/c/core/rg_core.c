@@ -258,7 +258,6 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->track_near = RG_NO_TRACK;
     s->track_far = RG_NO_TRACK;
     s->track_closing = 0;
-    s->track_age_ms = 0;
     s->track_cycles = 0;
     s->track_absent = 0;
     s->kept = 0;
@@ -798,7 +797,7 @@ int32_t rg_decide(int32_t voted_dm, const rg_curve_set *voted, int32_t track_sup
 
 /* ---- obstacle memory (memory.py): positions in 1e-5 m, the unit of cm/s x ms ---------- */
 
-/*@ requires 0 <= accel_mms2 <= 10000 && 1 <= period_ms <= 10000;
+/*@ requires 0 <= accel_mms2 <= 10000 && 1 <= period_ms <= 70000;
     assigns \nothing;
     ensures \result >= 0;
     ensures \result * 20000 >= accel_mms2 * period_ms * period_ms;
@@ -815,7 +814,7 @@ int64_t rg_accel_run(int64_t accel_mms2, int64_t period_ms)
  * closing at its own speed. The third ensures is stronger than Python's two: every term
  * (speed error, acceleration, the obstacle's speed) is there, each rounded up. */
 /*@ requires 0 <= speed_cms <= 12000 && 0 <= error_permille <= 500 && 0 <= accel_mms2 <= 10000;
-    requires 0 <= obstacle_cms <= 15000 && 1 <= period_ms <= 10000;
+    requires 0 <= obstacle_cms <= 15000 && 1 <= period_ms <= 70000;
     assigns \nothing;
     ensures \result * 1000 >= speed_cms * (1000 + error_permille) * period_ms + obstacle_cms * period_ms * 1000;
     ensures \result >= speed_cms * period_ms + obstacle_cms * period_ms;
@@ -1039,8 +1038,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     if (s->node < 0 || (uint32_t)s->node >= t->nodes || s->held < RG_MAINTAIN || s->held > RG_EMERGENCY
         || s->table_held < RG_MAINTAIN || s->table_held > RG_EMERGENCY || s->track_near < RG_NO_TRACK
         || s->track_near > RG_MAX_TRACK || s->track_far < RG_NO_TRACK || s->track_far > RG_MAX_TRACK
-        || s->track_closing < 0 || s->track_closing > RG_MAX_CLOSING_CMS || s->track_age_ms < 0
-        || s->track_age_ms > RG_MAX_AGE_MS) {
+        || s->track_closing < 0 || s->track_closing > RG_MAX_CLOSING_CMS) {
         safe_stop_fallback(s, out);
         return;
     }
@@ -1117,7 +1115,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     trk.near = s->track_near;
     trk.far = s->track_far;
     trk.closing_cms = s->track_closing;
-    trk.age_ms = s->track_age_ms;
+    trk.age_ms = 0;          /* a remembered position's age was counted when it was moved */
     confirmed = present && sys_status == RG_PRESENT && !sys_error;
     if (present) {
         rg_observe(&trk, distance, toward - own_speed, age, confirmed);
@@ -1239,10 +1237,12 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     }
     if (warn) reasons |= RG_R_WARNING;
 
-    /* the remembered obstacle moved for the next period, worst case for the train */
+    /* the remembered obstacle moved for the next period, worst case for the train; after a
+       sighting also for the report's age (the remembered curves count no age: it is counted
+       once, at the speed of the cycle that saw it) */
     if (trk.near != RG_NO_TRACK) {
         const int64_t near = (int64_t)trk.near - rg_near_travel(speed, err, track_accel, trk.closing_cms,
-                                                                 cfg->period_ms);
+                                                                 (int64_t)cfg->period_ms + trk.age_ms);
         trk.near = near > 0 ? (int32_t)near : 0;
     }
 
@@ -1263,7 +1263,6 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->track_near = trk.near;
     s->track_far = trk.far;
     s->track_closing = trk.closing_cms;
-    s->track_age_ms = trk.age_ms;
     s->track_cycles = t_cycles;
     s->track_absent = t_absent;
     s->kept = keep && speed > 0 && held > RG_MAINTAIN;

@@ -168,7 +168,6 @@ typedef struct {
     int32_t track_near;   /* remembered obstacle, worst case (nearest), 1e-5 m; RG_NO_TRACK if none */
     int32_t track_far;    /* the remembered position less the train's least travel */
     int32_t track_closing;  /* the remembered obstacle's own speed towards the train, cm/s (>= 0) */
-    int32_t track_age_ms;   /* age of the report the remembered distance came from */
     int32_t track_cycles;   /* cycles since the obstacle was last voted */
     int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
     int32_t kept;           /* an obstacle in sight and closing keeps what is held (keep_held) */
