@@ -15,7 +15,7 @@ import pytest
 import monitor
 from monitor.core.config import Config, ConfigurationError, forget_cycles
 from monitor.core.cycle import create, initial_state, replay, step
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.table import decode, encode
 from monitor.core.types import (
     ABSENT, DEGRADED, DEGRADED_MODE, DYNAMIC, EMERGENCY, INIT, MAINTAIN, MAX_CLOSING_CMS,
@@ -438,7 +438,11 @@ def test_ebi_just_inside_and_just_outside(speed):
     out = d.present(ebi, speed)
     assert out.mode == NORMAL and not out.system_error
     assert out.distance_dm == ebi
-    assert out.observation == 3
+    # the table's critical zone ends at the zone limit (without the sampling period), nearer
+    # than the supervised EBI: there the table reads the emergency zone
+    zone_limit = ebi_dm(cfg, speed, 0, 0, 0, 0)
+    assert zone_limit < ebi or speed == 1                 # 1 cm/s more for 0.1 s may round to the same dm
+    assert out.observation == (3 if ebi <= zone_limit else 2)
     assert out.reasons & R_ENVELOPE
     assert not out.reasons & R_TABLE
     assert out.demand == EMERGENCY
@@ -740,7 +744,7 @@ def exact_ebi_m(cfg: Config, v_cms: int, track: int, brake: int, closing_cms: in
     if cfg.emergency_band2_cms:
         bands.append((Fraction(cfg.emergency_band2_cms, 100), Fraction(cfg.emergency_band2_mms2, 1000)))
     vmax, vmin = v * (1 + e), v * (1 - e)
-    t1 = Fraction(age_ms + cfg.period_ms + cfg.traction_cutoff_ms, 1000)
+    t1 = Fraction(age_ms + 2 * cfg.period_ms + cfg.traction_cutoff_ms, 1000)
     a1 = Fraction(cfg.max_accel_mms2, 1000) + g
     v1 = vmax + a1 * t1
     t2 = max(Fraction(cfg.emergency_buildup_ms - cfg.traction_cutoff_ms, 1000), Fraction(0))
@@ -773,10 +777,11 @@ def test_ebi_is_never_shorter_than_the_exact_curve_and_hardly_longer(cfg, track,
 
 def test_curve_reference_values():
     """The shipped train at 40 m/s on a level-looking but declared 20 per mille downhill: EBI
-    about 476 m (the old nominal envelope said 287 m)."""
+    about 481 m (the old nominal envelope said 287 m; 476 m before the sampling period was
+    counted: 40.8 m/s for 0.1 s more, accelerating)."""
     c = curves(Config(), 4000, 0, 0, 4000, 0)
-    assert c == (3990, 4758, 5590, 6422)
-    assert curves(Config(), 0, 0, 0, 0, 0).ebi_dm == 57
+    assert c == (3990, 4815, 5647, 6479)
+    assert curves(Config(), 0, 0, 0, 0, 0).ebi_dm == 58
 
 
 def test_curves_are_ordered_and_grow_with_speed_and_adverse_conditions():

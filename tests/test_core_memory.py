@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.config import Config, forget_cycles, gradient_accel_mms2
 from monitor.core.memory import UNITS_PER_DM, near_travel
 from monitor.core.types import (
@@ -205,7 +205,9 @@ def test_an_obstacle_in_sight_and_closing_keeps_what_is_held_until_it_opens_the_
     cfg = Config()
     d = normal_driver(cfg, M1)
     c = curves(cfg, V, 0, 0, V, 0)
-    assert d.cycle(present(d.tick, c.ebi_dm, closing=V), V).demand == EMERGENCY
+    at = ebi_dm(cfg, V, 0, 0, V, 0)                      # the table's critical zone: inside the supervised EBI
+    out = d.cycle(present(d.tick, at, closing=V), V)
+    assert out.demand == EMERGENCY and out.observation == 3 and out.reasons & R_ENVELOPE
     slow = 300                                            # 3 m/s: far beyond SBI for the same distance
     assert curves(cfg, slow, 0, 0, slow, 0).warning_dm < c.ebi_dm - 100
     for k in range(3 * cfg.release_confirm_cycles):

@@ -609,7 +609,8 @@ def test_obstacle_run_and_scaled_decelerations_are_rounded_to_the_safe_side():
 # --------------------------------------------------------------------------- the braking curves, exactly
 
 
-def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: int, age: int, service: bool = False):
+def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: int, age: int, service: bool = False,
+                     periods: int = 2):
     """EBD, EBI, SBI and warning (dm) written out again from docs/supervision.md in exact
     fractions of SI units, every term rounded to the safe side on its own as the document
     says (distances and speeds up, decelerations down), without monitor.core.braking."""
@@ -659,7 +660,7 @@ def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: i
     def closes(t_ms):                            # dm the oncoming obstacle runs, up
         return up(F(obstacle, 100) * F(t_ms, 1000) * 10) if obstacle > 0 else 0
 
-    t1 = age + cfg.period_ms + cfg.traction_cutoff_ms
+    t1 = age + periods * cfg.period_ms + cfg.traction_cutoff_ms
     a1 = cfg.max_accel_mms2 + g
     s1, v1 = run(v_max, a1, t1), after(v_max, a1, t1)
     t2 = max(0, buildup - cfg.traction_cutoff_ms)
@@ -704,7 +705,8 @@ def _just_past_a_whole_dm(cfg: Config) -> set:
 
 @pytest.mark.parametrize("name", sorted(CURVE_CONFIGS))
 def test_curves_equal_the_exact_construction_term_by_term(name):
-    """curves() and ebi_dm() (the table's alpha1 with service=True, alpha2) equal the curves
+    """curves() (two periods in the reaction: the sampling and the demand's) and ebi_dm()
+    (the table's alpha1 with service=True, alpha2: the demand's period only) equal the curves
     written out again in exact fractions, at 0, 1 and 2 cm/s, at and beside every band edge,
     at the top speed, at speeds whose lead run ends just past a whole dm and at
     deterministic random speeds, under every track/brake condition,
@@ -726,10 +728,13 @@ def test_curves_equal_the_exact_construction_term_by_term(name):
                 age = rnd.choice([0, 1, 100, 300])
                 want = reference_curves(cfg, speed, track, brake, closing, age)
                 assert tuple(curves(cfg, speed, track, brake, closing, age)) == want, (speed, track, brake, closing, age)
-                assert ebi_dm(cfg, speed, track, brake, closing, age) == want[1]
+                zone = reference_curves(cfg, speed, track, brake, closing, age, periods=1)
+                assert ebi_dm(cfg, speed, track, brake, closing, age) == zone[1]
                 svc = reference_curves(cfg, speed, track, brake, closing, age, service=True)
                 assert tuple(curves(cfg, speed, track, brake, closing, age, service=True)) == svc
-                assert ebi_dm(cfg, speed, track, brake, closing, age, service=True) == svc[1]
+                svc_zone = reference_curves(cfg, speed, track, brake, closing, age, service=True, periods=1)
+                assert ebi_dm(cfg, speed, track, brake, closing, age, service=True) == svc_zone[1]
+                assert zone[1] <= want[1]                 # the zone limit is never beyond the supervised EBI
 
 
 def test_curves_saturate_at_100_km():

@@ -17,7 +17,7 @@ from hypothesis.stateful import RuleBasedStateMachine, rule, run_state_machine_a
 import monitor
 from monitor.core.config import Config
 from monitor.core.cycle import create, initial_state, step
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.observation import M2_OBSERVATIONS
 from monitor.core.types import (
     DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE, R_DISPUTE, R_INIT,
@@ -308,8 +308,8 @@ class CoreMachine(RuleBasedStateMachine):
         if valid:
             v = self.train.speed_cms
             if out.distance_dm != NO_DISTANCE:     # the table's zones: normal conditions
-                a2 = curves(cfg, v, 0, 0, closing, age).ebi_dm
-                a1 = max(a2, curves(cfg, v, 0, 0, closing, age, service=True).ebi_dm)
+                a2 = ebi_dm(cfg, v, 0, 0, closing, age)                   # zone limits: braking.ebi_dm
+                a1 = max(a2, ebi_dm(cfg, v, 0, 0, closing, age, service=True))
                 d = out.distance_dm
                 zone = 3 if d <= a2 else 2 if d <= a1 else 1 if d <= a1 + cfg.warning_margin_dm else 0
             else:

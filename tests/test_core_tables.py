@@ -15,7 +15,7 @@ import pytest
 import monitor
 from monitor.core.config import Config
 from monitor.core.cycle import create, step
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.envelope import supervision_demand
 from monitor.core.observation import M1_OBSERVATIONS, M2_OBSERVATIONS
 from monitor.core.table import decode
@@ -47,9 +47,10 @@ def state_at(setup, node: int, mode: int = NORMAL) -> State:
 
 
 def alphas(speed: int, closing: int = 0) -> tuple[int, int]:
-    """The table's zone limits: EBI and the service curve under normal conditions (fresh reports)."""
-    a2 = curves(CFG, speed, 0, 0, closing, 0).ebi_dm
-    return max(a2, curves(CFG, speed, 0, 0, closing, 0, service=True).ebi_dm), a2
+    """The table's zone limits: EBI and the service curve under normal conditions (fresh
+    reports), as zone limits (braking.ebi_dm: without the supervision's sampling period)."""
+    a2 = ebi_dm(CFG, speed, 0, 0, closing, 0)
+    return max(a2, ebi_dm(CFG, speed, 0, 0, closing, 0, service=True)), a2
 
 
 def ladder(d: int, speed: int, closing: int = 0, track: int = 0, brake: int = 0) -> int:
@@ -178,7 +179,9 @@ def test_m1_every_node_and_observation_through_the_core(mode):
                 expected = max(table.action[nxt], ladder(d, speed))
                 assert out.demand == expected, ctx
                 assert bool(out.reasons & R_TABLE) == (table.action[nxt] > 0), ctx
-                assert bool(out.reasons & R_ENVELOPE) == (obs == 3), ctx
+                # the supervised EBI counts the sampling period: it reaches beyond the critical zone
+                assert bool(out.reasons & R_ENVELOPE) == (d != NO_DISTANCE and d <= curves(CFG, speed, 0, 0, 0, 0).ebi_dm), ctx
+                assert obs < 3 or out.reasons & R_ENVELOPE, ctx
             elif mode == SAFE_STOP:
                 assert out.mode == SAFE_STOP and out.demand == EMERGENCY, ctx
             hits.add((node, obs))

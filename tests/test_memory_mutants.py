@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import pytest
 
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.config import Config, forget_cycles
 from monitor.core.cycle import initial_state, step
 from monitor.core.memory import accel_run, far_travel, forget, near_travel, observe
@@ -296,9 +296,11 @@ def sees(d, distance: int, closing: int, stale: bool = False) -> tuple:
 
 
 def emergency_inside_ebi(d) -> None:
+    """The obstacle at the supervised EBI: an emergency, the table's emergency zone (its
+    critical zone ends at the zone limit, without the sampling period), and keeping begins."""
     c = curves(d.cfg, V, 0, 0, V, 0)
     out = d.cycle(sees(d, c.ebi_dm, V), V)
-    assert out.demand == EMERGENCY and out.observation == 3 and d.state.kept
+    assert out.demand == EMERGENCY and out.observation == 2 and d.state.kept
 
 
 def test_standstill_ends_the_keeping():
@@ -356,8 +358,9 @@ def test_what_was_raised_at_standstill_is_not_kept_once_moving():
     only while moving, so once the train rolls (1 cm/s) and the obstacle is beyond the
     zones, the hold's confirmation runs."""
     d = keeper()
-    c = curves(d.cfg, 0, 0, 0, 1000, 0)
-    out = d.cycle(sees(d, c.ebi_dm, 1000), 0)
+    at = ebi_dm(d.cfg, 0, 0, 0, 1000, 0)                 # the zone limit: inside the supervised EBI
+    assert at <= curves(d.cfg, 0, 0, 0, 1000, 0).ebi_dm
+    out = d.cycle(sees(d, at, 1000), 0)
     assert out.demand == EMERGENCY and out.observation == 3 and not d.state.kept
     _released_after_the_confirmation(d, 1, 1)
 

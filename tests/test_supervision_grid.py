@@ -155,14 +155,15 @@ def test_the_grid_collides_when_the_declaration_promises_more_than_the_train_bra
 
 @pytest.mark.parametrize("worse", [{"factor": 0.9}, {"dead_s": 1.75}])
 def test_a_train_a_little_worse_than_declared_collides(curves_loop, worse):
-    """10 % less deceleration, or 0.75 s more dead time, than declared: collisions."""
+    """10 % less deceleration, or 0.75 s more dead time, than declared: collisions in at least
+    9 of the 12 hardest cases (the sampling period the curves count saves one of them)."""
     hard = acc.hardest_world(VALUES)
     if "factor" in worse:
         world = replace(hard, bands=tuple((s, a * worse["factor"]) for s, a in hard.bands))
     else:
         world = replace(hard, dead_s=worse["dead_s"])
     outcomes, _ = acc.run_cases(curves_loop, PARAMS, hardest_cases(world))
-    assert sum(o.collision for o in outcomes) >= 10
+    assert sum(o.collision for o in outcomes) >= 9          # of 12 (10 before the sampling period was counted)
 
 
 def test_the_grid_and_the_proof_agree_on_which_trains_are_inside_the_declaration():

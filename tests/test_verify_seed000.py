@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from monitor.core.braking import curves
+from monitor.core.braking import curves, ebi_dm
 from monitor.core.config import Config
 from verification import seed000
 from verification.seed000 import LITERAL, PAPER, SHIPPED, Scenario, simulate
@@ -130,9 +130,11 @@ def test_train_seconds_are_counted():
 
 def test_zones_and_obstacle_window():
     a1, a2 = SHIPPED.alphas_at_line_speed_m()
-    # the core's zones under normal conditions at 40 m/s, a static obstacle: alpha2 = EBI, alpha1 = the service EBI
-    assert (a1, a2) == (curves(Config(), 4000, 0, 0, 4000, 0, service=True).ebi_dm / 10,
-                        curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm / 10) == (1588.8, 475.8)
+    # the core's zones under normal conditions at 40 m/s, a static obstacle: alpha2 = EBI, alpha1 = the service
+    # EBI, as zone limits (without the supervision's sampling period: its EBI is 481.5 m)
+    assert (a1, a2) == (ebi_dm(Config(), 4000, 0, 0, 4000, 0, service=True) / 10,
+                        ebi_dm(Config(), 4000, 0, 0, 4000, 0) / 10) == (1588.8, 475.8)
+    assert curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm == 4815
     lo, hi = SHIPPED.appear_window_m()
     assert math.isclose(lo, 1032.3) and math.isclose(hi, 1082.3)
     assert PAPER.alphas_at_line_speed_m() == (300.0, 100.0)   # one cycle (4 m) + v^2/2a with 8.334 / 2.703 m/s^2

@@ -25,7 +25,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from monitor.core import cycle
-from monitor.core.braking import CURVE_CAP_DM
+from monitor.core.braking import CURVE_CAP_DM, SUPERVISED_PERIODS, ZONE_PERIODS
 from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, gradient_accel_mms2
 from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
@@ -84,8 +84,10 @@ def obstacle_run_dm(obstacle_cms, time_ms) -> np.ndarray:
     return np.where(obstacle_cms > 0, _ceil_div(obstacle_cms * time_ms, 10000), 0)
 
 
-def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: bool = False) -> Curves:
-    """monitor.core.braking.curves on int64 arrays (one element per train)."""
+def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: bool = False,
+           periods: int = SUPERVISED_PERIODS) -> Curves:
+    """monitor.core.braking.curves on int64 arrays (one element per train); `periods`
+    ZONE_PERIODS gives braking.ebi_dm's zone limits."""
     v = np.asarray(speed_cms, dtype=I64)
     track, brake = np.asarray(track, dtype=I64), np.asarray(brake, dtype=I64)
     closing, age = np.asarray(closing_cms, dtype=I64), np.asarray(age_ms, dtype=I64)
@@ -97,7 +99,7 @@ def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: b
     raw = ((0, cfg.service_decel_mms2),) if service else emergency_bands(cfg)
     buildup = cfg.service_buildup_ms if service else cfg.emergency_buildup_ms
     bands = [(lo, effective_decel(cfg, a, track, brake, g)) for lo, a in raw]
-    t1 = age + cfg.period_ms + cfg.traction_cutoff_ms
+    t1 = age + periods * cfg.period_ms + cfg.traction_cutoff_ms
     a1 = cfg.max_accel_mms2 + g
     s1, v1 = run_dm(v_max, a1, t1), speed_after_cms(v_max, a1, t1)
     t2 = max(buildup - cfg.traction_cutoff_ms, 0)
@@ -123,13 +125,13 @@ def _stop(speed_cms, bands: list) -> tuple[np.ndarray, np.ndarray]:
     return dist, time
 
 
-def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms, ebi_normal=None) -> tuple[np.ndarray, np.ndarray]:
+def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms) -> tuple[np.ndarray, np.ndarray]:
     """(alpha1, alpha2) of the table's zones as the core cuts them: alpha2 = EBI under normal
-    conditions (`ebi_normal` if given: the caller has it), alpha1 = the service curve's EBI
-    under normal conditions, at least alpha2."""
+    conditions, alpha1 = the service curve's EBI under normal conditions, at least alpha2,
+    both as zone limits (ZONE_PERIODS: without the supervision's sampling period)."""
     zero = np.zeros_like(np.asarray(speed_cms, dtype=I64))
-    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms).ebi_dm if ebi_normal is None else ebi_normal
-    alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True).ebi_dm
+    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, periods=ZONE_PERIODS).ebi_dm
+    alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True, periods=ZONE_PERIODS).ebi_dm
     return np.maximum(alpha1, alpha2), alpha2
 
 
@@ -276,8 +278,7 @@ class VectorMonitor:
         sup_age = age           # 0 where no channel shows it: a remembered position's age was counted
         c = curves(cfg, speed, track, brake, sup_toward, sup_age)
         env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
-        normal = not (track.any() or brake.any())         # then EBI is alpha2 (cycle._table_zone)
-        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age, c.ebi_dm if normal else None)
+        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age)
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
         if self.m2:

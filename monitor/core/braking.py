@@ -7,7 +7,9 @@ down), so the sum is never shorter than the exact value.
 
 * EBD: the guaranteed emergency deceleration (speed bands, adhesion factors, downhill
   gradient) stops the train `standstill_margin_dm` before the obstacle.
-* EBI: EBD moved for the speed error, the report's age, one monitor cycle, traction until
+* EBI: EBD moved for the speed error, the report's age, two monitor periods (the sampling:
+  the first cycle inside EBI can come one period after the last one outside it; and the
+  demand's way to the brakes), traction until
   it is cut (accelerating at `max_accel` plus the gradient) and the brake's equivalent
   build-up time (coasting downhill). An oncoming obstacle keeps closing at its own speed
   until the train stands.
@@ -22,6 +24,13 @@ from typing import NamedTuple
 from .config import Config, emergency_bands, gradient_accel_mms2
 
 CURVE_CAP_DM = 1_000_000        # 100 km: saturate here (every obstacle in range is inside)
+# Periods in EBI's reaction phase. The supervision samples once a period, so the first cycle
+# inside EBI may come one period after the last one outside it: its curves count that period
+# and the demand's way to the brakes. The table's zone limits count the demand's period only:
+# they are where an emergency must be commanded, and the POMDP the table was solved for steps
+# at the period itself (its own step is the sampling), so they stay the models' zones.
+SUPERVISED_PERIODS = 2
+ZONE_PERIODS = 1
 
 
 class Curves(NamedTuple):
@@ -132,15 +141,16 @@ def _brake(cfg: Config, track: int, brake: int, service: bool) -> tuple:
 
 
 def _intervention(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int, age_ms: int,
-                  service: bool) -> tuple[int, int, int, tuple]:
+                  service: bool, periods: int) -> tuple[int, int, int, tuple]:
     """(EBI dm uncapped, v_max, the obstacle's own speed, bands): the three phases of
-    docs/supervision.md section 2 (report age + cycle + traction cut-off under traction and
-    downhill; the rest of the build-up coasting downhill; guaranteed braking)."""
+    docs/supervision.md section 2 (report age + `periods` monitor periods + traction cut-off,
+    under traction and downhill; the rest of the build-up coasting downhill; guaranteed
+    braking)."""
     e = cfg.speed_error_permille
     v_max = -(-speed_cms * (1000 + e) // 1000)
     obstacle_cms = closing_cms - speed_cms * (1000 - e) // 1000     # the obstacle's own speed towards us
     bands, buildup, g = _brake(cfg, track, brake, service)
-    t1 = age_ms + cfg.period_ms + cfg.traction_cutoff_ms
+    t1 = age_ms + periods * cfg.period_ms + cfg.traction_cutoff_ms
     a1 = cfg.max_accel_mms2 + g
     s1, v1 = run_dm(v_max, a1, t1), speed_after_cms(v_max, a1, t1)
     t2 = buildup - cfg.traction_cutoff_ms if buildup > cfg.traction_cutoff_ms else 0
@@ -152,8 +162,9 @@ def _intervention(cfg: Config, speed_cms: int, track: int, brake: int, closing_c
 
 def ebi_dm(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int, age_ms: int,
            service: bool = False) -> int:
-    """EBI alone (the table's zone limits); `curves(...).ebi_dm` without the other three."""
-    return _cap(_intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service)[0])
+    """EBI as the table's zone limit: where an emergency must be commanded, without the
+    supervision's sampling period (ZONE_PERIODS); the models' zones (offline/models/zones.py)."""
+    return _cap(_intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service, ZONE_PERIODS)[0])
 
 
 def curves(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int, age_ms: int,
@@ -164,7 +175,8 @@ def curves(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int
 
     With `service`, the same construction for the service brake (its guaranteed
     deceleration and build-up): the table's alpha1."""
-    ebi, v_max, obstacle_cms, bands = _intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service)
+    ebi, v_max, obstacle_cms, bands = _intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service,
+                                                    SUPERVISED_PERIODS)
     ebd_dist, ebd_time = stop_dm_ms(speed_cms, bands)
     ebd = ebd_dist + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, ebd_time)
     lead_cms = v_max + (obstacle_cms if obstacle_cms > 0 else 0)

@@ -197,7 +197,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     #    normal conditions; the observation reads the voted picture alone
     if distance != NO_DISTANCE:
         curve = curves(cfg, speed, track, brake, toward, age)
-        z = _table_zone(cfg, distance, speed, track or brake, toward, age, curve.ebi_dm)
+        z = _table_zone(cfg, distance, speed, toward, age)
         env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
     else:
         z = 3 if sys_status == DEGRADED else 0
@@ -302,11 +302,11 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     return new_state, out
 
 
-def _table_zone(cfg: Config, distance: int, speed: int, adverse: int, toward: int, age: int, ebi: int) -> int:
+def _table_zone(cfg: Config, distance: int, speed: int, toward: int, age: int) -> int:
     """Zone of an obstacle for the table: alpha2 = EBI and alpha1 = the service curve's EBI,
-    both under normal conditions (alpha1 at least alpha2); `ebi` is EBI under the reported
-    conditions, which is alpha2 when they are normal."""
-    alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age) if adverse else ebi
+    both under normal conditions and as zone limits (braking.ebi_dm: without the supervision's
+    sampling period; alpha1 at least alpha2)."""
+    alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age)
     alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
     return zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
 

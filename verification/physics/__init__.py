@@ -113,11 +113,11 @@ def prove_task(job: tuple) -> list:
     return prove(job[1])
 
 
-def markdown(proofs: list[tuple[str, list]], weak: list[dict], found: list[tuple[str, list]] = ()) -> str:
+def markdown(proofs: list[tuple[str, list]], weak: list[dict]) -> str:
     from .model import ASSUMPTIONS
-    from .report_md import findings_md, proofs_md, weakenings_md
+    from .report_md import proofs_md, weakenings_md
 
-    return proofs_md(proofs, ASSUMPTIONS) + findings_md(found) + weakenings_md(weak)
+    return proofs_md(proofs, ASSUMPTIONS) + weakenings_md(weak)
 
 
 def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
@@ -141,13 +141,6 @@ def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
             checks.append(Check(f"physics [{label}] {r.name}", r.proved, f"{r.status} in {r.seconds:.2f} s",
                                 {"kind": r.kind, "phase": r.phase, "status": r.status, "seconds": round(r.seconds, 3),
                                  "counterexample": r.model, "declaration": label}))
-    from . import release
-    from .model import Declaration
-
-    found = [(label, release.findings(Declaration.of(cfg))) for label, cfg in todo]
-    for label, rs in found:
-        open_ = [r for r in rs if not r.proved]
-        progress(f"physics: {label}: {len(open_)} open finding(s) (the release rule's sampling step)")
     weak = weakening_runs(config or Config(), out_dir, progress, replay_all=not quick)   # a worker per core
     for row in weak:
         checks.append(Check(f"physics: planted weakening {row['weakening']} is caught", row["caught"],
@@ -155,10 +148,8 @@ def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
     (out_dir / "physics").mkdir(parents=True, exist_ok=True)
     (out_dir / "physics" / "physics.json").write_text(json.dumps(
         {"declarations": [{"declaration": label, "obligations": [r.__dict__ for r in results]} for label, results in proofs],
-         "findings": [{"declaration": label, **r.__dict__} for label, rs in found for r in rs if not r.proved],
          "weakenings": weak}, indent=1, default=str))
     proved = sum(r.proved for _, rs in proofs for r in rs)
     total = sum(len(rs) for _, rs in proofs)
-    n_found = sum(not r.proved for _, rs in found for r in rs)
-    return Section("Physics: the curves proved sufficient (Z3)", markdown(proofs, weak, found), checks,
-                   headline={"obligations": total, "proved": proved, "open_findings": n_found})
+    return Section("Physics: the curves proved sufficient (Z3)", markdown(proofs, weak), checks,
+                   headline={"obligations": total, "proved": proved})

@@ -5,7 +5,10 @@ when the obstacle's distance `D` was measured (the report's age before the monit
 Each phase is a differential equation with bounded inputs, as in the train FMU
 (fmu/c/train/model.c) and its Python twin (verification/world_train.py):
 
-1. **reaction**, for `t1 = age + period + traction_cutoff`: x' = v, v' = acc with
+1. **reaction**, for `t1 = age + 2 period + traction_cutoff` (the report's age; the sampling
+   period: the first cycle that finds the train inside EBI may come one period after the last
+   that found it outside; the demand's period on its way to the brakes; traction until it is
+   cut): x' = v, v' = acc with
    acc <= max_accel + g grad (full traction and the downhill pull) and v >= 0;
 2. **build-up**, for `t2 = max(0, buildup - traction_cutoff)` (the declared *equivalent*
    build-up: dead time plus half the ramp, which covers a linear ramp; docs/supervision.md 2.4):
@@ -33,6 +36,7 @@ from fractions import Fraction
 
 import z3
 
+from monitor.core.braking import SUPERVISED_PERIODS
 from monitor.core.config import Config, emergency_bands
 from monitor.core.types import MAX_CLOSING_CMS, MAX_SPEED_CMS
 
@@ -48,8 +52,8 @@ ASSUMPTIONS = (
     "during a report's age the train ran no faster than the speed error allows around the speed the cycle "
     "measures, accelerating at most at traction plus the steepest downhill (the age is at most "
     "`timeout_cycles x period`)",
-    "the monitor runs every period: a remembered obstacle is moved once per period, by the cycle that saw "
-    "the train's speed",
+    "the monitor runs every period: the first cycle inside EBI is at most one period after the last one "
+    "outside it, and a remembered obstacle is moved once per period, at the speed that cycle measured",
     "the train's equivalent build-up (dead time + half a linear ramp) is at most the declared one",
     "in each speed band the brake decelerates at least as declared, times the adhesion factors the train reports",
     "the gradient is at most `max_downhill_gradient` downhill, and traction at most `max_accel`",
@@ -136,16 +140,19 @@ class RealCurves:
     phases: dict                 # the pieces of EBI: t1 s1 v1 t2 s2 v2 s3 t3 w (m, s, m/s)
 
 
-def real_curves(d: Declaration, v, c, age, track: int, brake: int, service: bool = False) -> RealCurves:
+def real_curves(d: Declaration, v, c, age, track: int, brake: int, service: bool = False,
+                periods: int = SUPERVISED_PERIODS) -> RealCurves:
     """The curves of docs/supervision.md section 2 in exact real arithmetic, in m, at measured
-    speed v (m/s), closing speed c (m/s) and report age (s): the yardstick for the integer code."""
+    speed v (m/s), closing speed c (m/s) and report age (s): the yardstick for the integer code.
+    `periods` in the reaction: the supervision's two (the sampling and the demand's) or a zone
+    limit's one (braking.ZONE_PERIODS)."""
     gg = q(G * d.max_gradient)
     e = q(d.speed_error)
     v_max, v_min = v * (1 + e), v * (1 - e)
     w = pos(c - v_min)
     decels = [q(a * d.factor(track, brake)) - gg for _, a in d.brake(service)]
     bands = d.brake(service)
-    t1 = age + q(d.period + d.traction_cutoff)
+    t1 = age + q(periods * d.period + d.traction_cutoff)
     a1 = q(d.max_accel) + gg
     s1, v1 = v_max * t1 + a1 * t1 * t1 / 2, v_max + a1 * t1
     t2 = q(max(Fraction(0), d.buildup(service) - d.traction_cutoff))

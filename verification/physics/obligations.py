@@ -26,6 +26,7 @@ from typing import Callable, Optional
 
 import z3
 
+from monitor.core.braking import SUPERVISED_PERIODS, ZONE_PERIODS
 from monitor.core.config import Config
 from monitor.core.types import MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS
 
@@ -106,11 +107,13 @@ class Lemmas:
     formula to refute, named after the phase it covers (the way a KeYmaera proof splits)."""
 
     def __init__(self, d: Declaration, service: bool, track: int, brake: int, curve_d: Optional[Declaration] = None,
-                 remembered: bool = False):
+                 remembered: bool = False, periods: int = SUPERVISED_PERIODS):
         """`curve_d`: the declaration the curve is computed from (default `d`, the train's): a
         test plants a weaker one to see the proof fail. `remembered`: the closing speed is the
         memory's (the remembered own speed, at least the obstacle's, plus the train's least
-        speed), not a measurement: the obstacle's own speed is anything up to it (release.py)."""
+        speed), not a measurement: the obstacle's own speed is anything up to it (release.py).
+        `periods`: monitor periods in the reaction, the train's and the curve's (the supervision's
+        two; one for a zone limit, where the brake is demanded at the limit itself)."""
         self.d, self.service, self.track, self.brake = d, service, track, brake
         v, v0, c, w0, age, grad, D = z3.Reals("v v0 c w0 age grad D")
         self.v, self.v0, self.c, self.w0, self.age, self.grad, self.D = v, v0, c, w0, age, grad, D
@@ -119,14 +122,14 @@ class Lemmas:
         self.dec = [z3.Real(f"d{i}") for i in range(len(self.brakes))]
         e = q(d.speed_error)
         self.gg = q(G) * grad
-        self.real = real_curves(curve_d or d, v, c, age, track, brake, service)
+        self.real = real_curves(curve_d or d, v, c, age, track, brake, service, periods)
         self.domain = [0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
                        0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient),
                        w0 <= c - v * (1 - e) if remembered else c == v0 + w0,
                        -q(Fraction(MAX_CLOSING_CMS, 100)) <= c,
                        c <= q(Fraction(MAX_TRACK_CLOSING_CMS, 100))]
         self.domain += [di >= q(a * d.factor(track, brake)) for di, (_, a) in zip(self.dec, self.brakes)]
-        self.t1 = age + q(d.period + d.traction_cutoff)
+        self.t1 = age + q(periods * d.period + d.traction_cutoff)
         self.t2 = q(max(Fraction(0), d.buildup(service) - d.traction_cutoff))
         # the dI bounds of each phase at the true start values (model.phase_invariants)
         a1, a2 = pos(q(d.max_accel) + self.gg), pos(self.gg)
@@ -228,9 +231,11 @@ def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Re
     speed v2, that within the curve's at its v2 (monotone), and the sum (linear, in the last step)."""
     out = []
     for service in (False, True):
-        curve = "alpha1 (service)" if service else "EBI (emergency)"
+        # the service brake at alpha1 is a zone limit of the table (braking.ebi_dm): where the
+        # brake must be commanded, so the claim is for a demand at the limit itself
+        curve = "alpha1 (service, a zone limit: demanded at it)" if service else "EBI (emergency)"
         for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
-            lemmas = Lemmas(d, service, track, brake)
+            lemmas = Lemmas(d, service, track, brake, periods=ZONE_PERIODS if service else SUPERVISED_PERIODS)
             steps = [(s, None) for s in lemmas.steps()] + [(s, k) for k in KINDS for s in lemmas.kind_steps(k)]
             for (name, phase, formula), kind in steps:
                 r = Result(f"{curve}, {cond}: {name}", "sufficiency", phase,
@@ -253,22 +258,26 @@ def integer_results(cfg: Config, d: Declaration, braking: ModuleType, timeout_ms
     for service in (False, True):
         for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
             t0 = time.perf_counter()
-            paths = symbolic.explore(braking.curves, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,
-                                                      "closing_cms": c, "age_ms": a, "service": service}, domain,
+            # the emergency curves the supervision uses (braking.curves), and alpha1, the table's
+            # service zone limit, as the core computes it (braking.ebi_dm, service=True)
+            fn = braking.ebi_dm if service else braking.curves
+            paths = symbolic.explore(fn, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,
+                                          "closing_cms": c, "age_ms": a, "service": service}, domain,
                                      timeout_ms=EXPLORE_TIMEOUT_MS)
             explored = time.perf_counter() - t0
-            real = real_curves(d, s / 100, c / 100, a / 1000, track, brake, service)
+            real = real_curves(d, s / 100, c / 100, a / 1000, track, brake, service,
+                               ZONE_PERIODS if service else SUPERVISED_PERIODS)
             names = ("ebi",) if service else CURVES
             proved_facts = [[] for _ in paths]       # per path: curves already proved there (sound hypotheses)
             for name in names:
                 label = "alpha1" if service else name.upper()
-                r = Result(f"integer {label} >= real, {cond} ({len(paths)} paths of braking.curves)", "integer",
-                           f"braking.curves().{name}_dm", context={"curve": name, "service": service,
-                                                                    "track": track, "brake": brake})
+                where = "braking.ebi_dm(service=True)" if service else f"braking.curves().{name}_dm"
+                r = Result(f"integer {label} >= real, {cond} ({len(paths)} paths of {fn.__name__})", "integer", where,
+                           context={"curve": name, "service": service, "track": track, "brake": brake})
                 t1 = time.perf_counter()
                 status, model = "proved", None
                 for i, p in enumerate(paths):
-                    rounded = getattr(p.value, f"{name}_dm") / 10
+                    rounded = (p.value if service else getattr(p.value, f"{name}_dm")) / 10
                     # shorter than the real curve, where that matters: below the farthest distance the
                     # core ever compares a curve with (a voted or remembered obstacle is never farther)
                     st, m = refute(z3.And(*domain, *p.condition, *p.side, *proved_facts[i], rounded < getattr(real, name),

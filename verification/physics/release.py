@@ -18,7 +18,8 @@ The step, for every train inside the declaration:
   which is why the age is counted there, once, and not by the remembered curves;
 * `free cycle`: from (F), after one period without an emergency, an emergency demanded at
   the next cycle still stops the train `standstill_margin` short (the sufficiency chain
-  with the closing speed the memory holds: the obstacle's own speed anything up to it);
+  with the closing speed the memory holds: the obstacle's own speed anything up to it; the
+  curves count the sampling period, which is this free period);
 * `never inside EBD`: from (F), after that period the true gap is still at least EBD at the
   true speed (stopping distance at the declared deceleration, worst gradient, plus margin
   and the obstacle's travel meanwhile).
@@ -117,30 +118,22 @@ def near_travel_results(cfg: Config, d: Declaration, accel: int, timeout_ms: int
     return out
 
 
-def late_by_one_period(d: Declaration, track: int, brake: int, keep=0) -> tuple:
-    """(formula to refute, named terms): (F) at one cycle, then one free period, then an
-    emergency at the next cycle: the train's reaction runs the free period, the demand's way
-    to the brakes and the traction cut-off, while EBI counts one period (the curves do not
-    count the sampling period, docs/proof.md). Refuted: it ends less than `keep` m short."""
-    import dataclasses
-
-    lem = Lemmas(dataclasses.replace(d, period=2 * d.period), False, track, brake, curve_d=d, remembered=True)
-    s_decl, t_decl = lem.declared()
-    gap = lem.D - lem.x1 - lem.x2 - lem.xb - lem.closed
-    formula = z3.And(*lem.domain, *lem.reaction, *lem.buildup, lem.xb <= s_decl, 0 <= lem.tb, lem.tb <= t_decl,
-                     lem.D >= lem.real.ebi, gap < q(keep))
-    return formula, dict(lem.named(), gap=gap)
-
-
 def cycle_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
-    """(F) one free period on, per reported condition: the train is still outside EBD at its
-    true speed. (That an emergency demanded then stops short is `findings`: it does not hold.)"""
+    """(F) one free period on, per reported condition: an emergency demanded at the next
+    cycle stops the train `standstill_margin` short of the remembered obstacle (the whole
+    sufficiency chain, on the memory's closing speed: the curves count the sampling period,
+    so the free period is the first of the reaction's two), and the train is still outside
+    EBD at its true speed."""
     out = []
     for track, brake, cond in CONDITIONS:
         ctx = {"service": False, "kind": "remembered", "track": track, "brake": brake}
+        lem = Lemmas(d, False, track, brake, remembered=True)
+        for name, phase, formula in lem.steps() + lem.kind_steps("remembered"):
+            r = Result(f"release, {cond}: {name.replace('(remembered)', '(remembered obstacle)')}", "release",
+                       phase, context=ctx)
+            out.append(timed(r, formula, lem.named(), timeout_ms))
         # never inside EBD after a free period: the train's travel and speed after one period
         # (the reaction phase's dI bounds over T), the EBD at its true speed then
-        lem = Lemmas(d, False, track, brake, remembered=True)
         base = lem.domain
         p = lem.real.phases
         period = q(d.period)
@@ -160,22 +153,6 @@ def cycle_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
             r = Result(f"release, {cond}: {name}", "release", phase, context=ctx)
             out.append(timed(r, formula, {**lem.named(), "travel_in_period": xp, "speed_after_period": u},
                              timeout_ms))
-    return out
-
-
-def findings(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
-    """The step of the invariant that fails, per reported condition: outside EBI at one cycle,
-    an emergency demanded at the next does not always stop short of a remembered obstacle,
-    because the curves do not count the sampling period (docs/proof.md). Reported with Z3's
-    counterexample as an open finding, not as a check; a test requires it refuted until the
-    curves count the period (then the test fails, and this becomes a proved step)."""
-    out = []
-    for track, brake, cond in CONDITIONS:
-        formula, named = late_by_one_period(d, track, brake)
-        r = Result(f"release, {cond}: outside EBI at one cycle, an emergency at the next stops short of a remembered "
-                   "obstacle", "finding", "sampling+reaction+build-up+braking",
-                   context={"service": False, "kind": "remembered", "track": track, "brake": brake})
-        out.append(timed(r, formula, named, timeout_ms))
     return out
 
 

@@ -7,7 +7,7 @@ from ..report import md_table
 def proofs_md(proofs: list, assumptions: tuple) -> str:
     md = ["Every obligation is a formula whose negation Z3 (nlsat, real arithmetic) finds unsatisfiable; "
           "`refuted` comes with a counterexample, `unknown` (a timeout) does not count as proved. The model "
-          "(verification/physics/model.py): reaction (report age + one period + traction cut-off, under traction "
+          "(verification/physics/model.py): reaction (report age + the sampling period + the demand's period + traction cut-off, under traction "
           "and downhill), the rest of the equivalent build-up coasting downhill, braking by speed band at the "
           "guaranteed deceleration times the reported adhesion factors less the downhill pull; every bound a "
           "variable inside the declaration. The integer obligations run the shipped `monitor/core/braking.py` "
@@ -57,20 +57,3 @@ def _outcome(o: dict) -> str:
         return f"stopped {o['margin_m']:.1f} m short"
     return o["outcome"]
 
-
-def findings_md(found) -> str:
-    """Open findings: steps of a claimed invariant that Z3 refutes on the shipped code, each
-    with its counterexample. They are not checks (nothing here is claimed proved); the
-    test suite requires them refuted until the code is fixed."""
-    rows = [(label, r) for label, rs in found for r in rs if not r.proved]
-    if not rows:
-        return ""
-    md = ["\n### Open findings (refuted on the shipped code, not claimed)\n",
-          "The release rule's one-cycle invariant (issue 30 item 4) fails at one step: outside EBI at one "
-          "cycle, an emergency first demanded at the next does not always stop short of a remembered obstacle, "
-          "because the curves count the demand's period but not the sampling period (docs/proof.md, "
-          "\"The release rule\"). Z3's counterexamples:\n"]
-    keys = ("measured_speed", "closing_speed", "obstacle_speed", "distance", "gap")
-    md.append(md_table(["declaration", "step", *keys],
-                       [[label, r.name, *(f"{r.model.get(k, float('nan')):.4f}" for k in keys)] for label, r in rows]))
-    return "\n".join(md) + "\n"

@@ -29,7 +29,7 @@ class Weakening:
     name: str
     what: str
     python: tuple          # ((old, new), ...) in braking.py
-    c: tuple               # ((old, new), ...) in rg_core.c
+    c: tuple               # ((old, new), ...) in rg_core.c or rg_core.h
 
 
 WEAKENINGS = (
@@ -49,6 +49,9 @@ WEAKENINGS = (
                 "(cfg.service_buildup_ms if service else cfg.emergency_buildup_ms) // 2, g"),),
               (("    const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;",
                 "    const int64_t buildup = (service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms) / 2;"),)),
+    Weakening("sampling-ignored", "the sampling period left out of the supervision's reaction (one period, not two)",
+              (("SUPERVISED_PERIODS = 2\n", "SUPERVISED_PERIODS = 1\n"),),
+              (("#define RG_SUPERVISED_PERIODS 2", "#define RG_SUPERVISED_PERIODS 1"),)),
     Weakening("oncoming-ignored", "the oncoming obstacle's travel left out of EBI",
               (("    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, t1 + t2 + t3)\n",
                 "    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm\n"),),
@@ -86,10 +89,15 @@ def weakened_braking(w: Weakening) -> ModuleType:
 
 
 def weakened_core(w: Weakening, folder: Path) -> Path:
-    """A copy of fmu/c/core with the weakening applied to rg_core.c."""
+    """A copy of fmu/c/core with the weakening applied: each C edit to the one file of
+    rg_core.c and rg_core.h that holds its text."""
     folder.mkdir(parents=True, exist_ok=True)
     for path in CORE_DIR.glob("*.[ch]"):
         shutil.copy(path, folder / path.name)
-    core = folder / "rg_core.c"
-    core.write_text(edit(core.read_text(), w.c, "fmu/c/core/rg_core.c"))
+    files = [folder / "rg_core.c", folder / "rg_core.h"]
+    for old, new in w.c:
+        holders = [f for f in files if old in f.read_text()]
+        if len(holders) != 1:
+            raise WeakeningError(f"fmu/c/core: the weakening's edit does not apply (expected in one file: {old.strip()!r})")
+        holders[0].write_text(edit(holders[0].read_text(), ((old, new),), f"fmu/c/core/{holders[0].name}"))
     return folder

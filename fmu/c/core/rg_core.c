@@ -574,7 +574,7 @@ static int32_t conditioned_bands(const rg_config *cfg, int32_t track, int32_t br
 }
 
 void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
-               int32_t age_ms, int32_t service, rg_curve_set *out)
+               int32_t age_ms, int32_t service, int32_t periods, rg_curve_set *out)
 {
     rg_band bands[RG_MAX_BANDS] = {{0, 0}, {0, 0}, {0, 0}};   /* (whole: EVA merges the band index) */
     const int64_t v = speed_cms, e = cfg->speed_error_permille;
@@ -585,8 +585,10 @@ void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t b
     const int32_t n = conditioned_bands(cfg, track, brake, service, g, bands);
     const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;
     int64_t t1, a1, s1, v1, t2, s2, v2, s3, t3, ebi, ebd_dist, ebd_time, ebd, lead, sbi;
-    /* phase 1: report age + one cycle + traction cut-off, under full traction and downhill */
-    t1 = (int64_t)age_ms + cfg->period_ms + cfg->traction_cutoff_ms;
+    /* phase 1: report age + `periods` monitor periods (RG_SUPERVISED_PERIODS: the sampling
+       period and the demand's; RG_ZONE_PERIODS for the table's zone limits: the demand's) +
+       traction cut-off, under full traction and downhill */
+    t1 = (int64_t)age_ms + (int64_t)periods * cfg->period_ms + cfg->traction_cutoff_ms;
     a1 = (int64_t)cfg->max_accel_mms2 + g;
     s1 = rg_run_dm(v_max, a1, t1);
     v1 = rg_speed_after_cms(v_max, a1, t1);
@@ -990,18 +992,15 @@ static void safe_stop_fallback(rg_state *s, rg_outputs *out)
 }
 
 /* cycle._table_zone: zone of an obstacle for the table: alpha2 = EBI and alpha1 = the
- * service curve's EBI, both under normal conditions (alpha1 at least alpha2); `ebi` is the
- * EBI under the reported conditions, which is alpha2 when they are normal. */
-static int32_t table_zone(const rg_config *cfg, int32_t distance, int32_t speed, int32_t adverse, int32_t toward,
-                          int32_t age, int32_t ebi)
+ * service curve's EBI, both under normal conditions and as zone limits (RG_ZONE_PERIODS:
+ * without the supervision's sampling period; alpha1 at least alpha2). */
+static int32_t table_zone(const rg_config *cfg, int32_t distance, int32_t speed, int32_t toward, int32_t age)
 {
     rg_curve_set c;
-    int32_t alpha1, alpha2 = ebi;
-    if (adverse) {
-        rg_curves(cfg, speed, 0, 0, toward, age, 0, &c);
-        alpha2 = c.ebi_dm;
-    }
-    rg_curves(cfg, speed, 0, 0, toward, age, 1, &c);
+    int32_t alpha1, alpha2;
+    rg_curves(cfg, speed, 0, 0, toward, age, 0, RG_ZONE_PERIODS, &c);
+    alpha2 = c.ebi_dm;
+    rg_curves(cfg, speed, 0, 0, toward, age, 1, RG_ZONE_PERIODS, &c);
     alpha1 = c.ebi_dm > alpha2 ? c.ebi_dm : alpha2;
     return rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
 }
@@ -1150,14 +1149,15 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
      *    the higher demand counts (rg_decide); the table's zones under normal ones; the
      *    observation reads the voted picture alone */
     if (present) {
-        rg_curves(cfg, speed, track, brake, toward, age, 0, &curve);
-        z = table_zone(cfg, distance, speed, track || brake, toward, age, curve.ebi_dm);
+        rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
+        z = table_zone(cfg, distance, speed, toward, age);
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
     }
     remembered = trk.near != RG_NO_TRACK && !confirmed;
     if (remembered) {
-        rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, &tcurve);
+        rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, RG_SUPERVISED_PERIODS,
+                  &tcurve);
     }
     if (t->model == RG_MODEL_M1) {
         obs = z;

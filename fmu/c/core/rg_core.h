@@ -275,8 +275,12 @@ void rg_band_stop(int64_t speed_cms, int64_t lo_cms, int64_t hi_cms, int64_t dec
 void rg_stop_dm_ms(int64_t speed_cms, const rg_band *bands, int32_t count, int64_t *dist_dm, int64_t *time_ms);
 int64_t rg_obstacle_run_dm(int64_t obstacle_cms, int64_t time_ms);
 int32_t rg_cap_dm(int64_t x);
+/* Periods in EBI's reaction phase (braking.SUPERVISED_PERIODS, ZONE_PERIODS): the supervision
+ * counts the sampling period and the demand's; the table's zone limits the demand's only. */
+#define RG_SUPERVISED_PERIODS 2
+#define RG_ZONE_PERIODS 1
 void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
-               int32_t age_ms, int32_t service, rg_curve_set *out);
+               int32_t age_ms, int32_t service, int32_t periods, rg_curve_set *out);
 int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32_t warning_dm);
 int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
                               int32_t held, int32_t *warning);
