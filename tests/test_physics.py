@@ -216,11 +216,7 @@ def test_the_sampling_period_is_what_keeps_a_remembered_obstacle_safe():
     d = Declaration.of(Config())
     for track, brake, _ in obligations.CONDITIONS:
         one = obligations.Lemmas(d, False, track, brake, curve_d=replace(d, period=d.period / 2), remembered=True)
-        s_decl, t_decl = one.declared()
-        gap = one.D - one.x1 - one.x2 - one.xb - one.closed
-        late = z3.And(*one.domain, *one.reaction, *one.buildup, one.xb <= s_decl, 0 <= one.tb, one.tb <= t_decl,
-                      one.D >= one.real.ebi, gap < 0)
-        assert obligations.refute(late)[0] == "refuted"
+        assert obligations.refute(one.ends_short_of(0))[0] == "refuted"
         now = obligations.Lemmas(d, False, track, brake, remembered=True)
         assert all(obligations.refute(f)[0] == "proved" for _, _, f in now.steps() + now.kind_steps("remembered"))
 
@@ -231,11 +227,7 @@ def test_a_declaration_without_speed_error_collides_one_period_late_without_the_
     state above 10 m/s); the shipped curves count two and stop margin short."""
     exact = Declaration.of(Config()._replace(speed_error_permille=0))
     late = obligations.Lemmas(exact, False, 0, 0, curve_d=replace(exact, period=exact.period / 2))
-    s_decl, t_decl = late.declared()
-    gap = late.D - late.x1 - late.x2 - late.xb - late.closed
-    collides = z3.And(*late.domain, *late.kind("static"), *late.reaction, *late.buildup, late.xb <= s_decl,
-                      0 <= late.tb, late.tb <= t_decl, late.D >= late.real.ebi, gap < 0)
-    status, found = obligations.refute(collides)
+    status, found = obligations.refute(late.ends_short_of(0, "static"))
     assert status == "refuted" and found is not None
     assert obligations.value(found, late.v) > 10                  # a real train speed, m/s
     shipped = obligations.Lemmas(exact, False, 0, 0)

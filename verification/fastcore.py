@@ -275,10 +275,10 @@ class VectorMonitor:
         sup = present | remembered
         sup_dist = np.where(remembered, track_dm, dist)
         sup_toward = np.where(remembered, self.track_closing + own, toward)
-        sup_age = age           # 0 where no channel shows it: a remembered position's age was counted
-        c = curves(cfg, speed, track, brake, sup_toward, sup_age)
+        # (age is 0 where no channel shows it: a remembered position's age was counted when moved)
+        c = curves(cfg, speed, track, brake, sup_toward, age)
         env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
-        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age)
+        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, age)
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
         if self.m2:

@@ -174,7 +174,7 @@ def curves(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int
     speed) and the age of the report the distance came from.
 
     With `service`, the same construction for the service brake (its guaranteed
-    deceleration and build-up): the table's alpha1."""
+    deceleration and build-up); the table's alpha1 is its zone limit, `ebi_dm(..., service=True)`."""
     ebi, v_max, obstacle_cms, bands = _intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service,
                                                     SUPERVISED_PERIODS)
     ebd_dist, ebd_time = stop_dm_ms(speed_cms, bands)

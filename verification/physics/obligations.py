@@ -155,6 +155,15 @@ class Lemmas:
         terms = band_terms(self.brakes, self.declared_net, self.v2)
         self.bound_x, self.bound_t = [x for x, _ in terms], [t for _, t in terms]
 
+    def ends_short_of(self, keep, kind: Optional[str] = None):
+        """The whole chain as one formula to refute: the phases' dI bounds, the braking within
+        the declared deceleration's bound, D >= EBI, and the train ending less than `keep` m
+        short (a direct check beside the named steps, for a curve that may be weaker)."""
+        s_decl, t_decl = self.declared()
+        gap = self.D - self.x1 - self.x2 - self.xb - self.closed
+        return z3.And(*self.domain, *(self.kind(kind) if kind else []), *self.reaction, *self.buildup,
+                      self.xb <= s_decl, 0 <= self.tb, self.tb <= t_decl, self.D >= self.real.ebi, gap < q(keep))
+
     def sum_step(self) -> object:
         """The bands' bounds add up (linear): each band within its bound b_i (the band steps),
         the bounds' sum within the curve's phase 3 (the monotone step) => the whole braking

@@ -41,7 +41,7 @@ from monitor.core.config import Config, track_accel_mms2
 from monitor.core.types import MAX_SPEED_CMS
 
 from . import symbolic
-from .model import Declaration, G, band_sums, pos, q
+from .model import MAX_UPHILL, Declaration, G, band_sums, pos, q
 from .obligations import CONDITIONS, EXPLORE_TIMEOUT_MS, TIMEOUT_MS, Lemmas, Result, refute, timed, value
 
 MAX_OWN_CMS = 15000          # memory.near_travel's obstacle bound (the remembered own speed)
@@ -59,7 +59,7 @@ def memory_step(d: Declaration, accel: Fraction, timeout_ms: int = TIMEOUT_MS, c
     step = tau if count_age else q(d.period)
     a_plus = pos(q(d.max_accel) + q(G) * grad)
     f = z3.And(0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
-               0 <= age, age <= q(d.max_age), 0 <= grad, grad <= q(d.max_gradient), 0 <= w, w0 <= w,
+               0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient), 0 <= w, w0 <= w,
                n <= x, 0 <= xp, xp <= v0 * tau + a_plus * tau * tau / 2,        # the reaction phase's dI bound
                moved >= v * (1 + e) * step + q(accel) * step * step / 2 + w * step,  # near_travel's proved bound
                x - xp - pos(w0) * tau < n - moved)
