@@ -166,6 +166,7 @@ def _train() -> list[Var]:
         Var("davis_c", "Real", P, "fixed", 8.0, "N.s2/m2", "Davis resistance, term in v^2", 0.0),
         Var("gradient", "Real", P, "fixed", 0.0, None, "track gradient in per mille, positive uphill", -60.0, 60.0),
         Var("max_traction", "Real", P, "fixed", 0.5, "m/s2", "traction acceleration available to hold the cruising speed", 0.0),
+        Var("cruise_speed", "Real", P, "fixed", -1.0, "m/s", "speed the cruise controller holds; above initial_speed the train pulls at up to max_traction until it gets there; negative: initial_speed", None, 120.0),
         Var("service_decel", "Real", P, "fixed", 1.0, "m/s2", "deceleration of service braking", 0.0),
         Var("emergency_decel", "Real", P, "fixed", 3.0, "m/s2", "deceleration of emergency braking (below emergency_band2_speed, if set)", 0.0),
         Var("emergency_band2_speed", "Real", P, "fixed", 0.0, "m/s", "emergency braking uses emergency_band2_decel from this speed (0: no band 2)", 0.0),

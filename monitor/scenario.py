@@ -48,12 +48,14 @@ CHANNEL_FREE_KINDS = ("blind",)      # faults of every channel at once: no chann
 FOREVER_S = 1e9
 
 # [train] keys -> the train FMU's parameter names (fmu/variables.py), which are also the
-# field names of verification/world_train.WorldTrain (its [world_train] tables accept both)
+# field names of verification/world_train.WorldTrain where it has them (its [world_train] tables
+# accept both; it has no cruise_speed: a world train cruises at its encounter speed)
 FMU_TRAIN_NAMES = {
     "speed_mps": "initial_speed", "service_decel_mps2": "service_decel", "emergency_decel_mps2": "emergency_decel",
     "brake_delay_s": "brake_delay", "brake_buildup_s": "brake_buildup", "traction_cutoff_s": "traction_cutoff",
     "max_traction_mps2": "max_traction", "gradient_permille": "gradient", "speed_error": "speed_error",
-    "mass_kg": "mass", "davis_a_n": "davis_a", "davis_b_n_per_mps": "davis_b", "davis_c_n_per_mps2": "davis_c",
+    "cruise_speed_mps": "cruise_speed", "mass_kg": "mass", "davis_a_n": "davis_a", "davis_b_n_per_mps": "davis_b",
+    "davis_c_n_per_mps2": "davis_c",
     "slippery_factor": "slippery_factor", "degraded_factor": "degraded_factor",
 }
 
@@ -86,6 +88,7 @@ class TrainSpec:
     brake_buildup_s: float = 0.5        # ramp of the brake force from zero to the full emergency level
     traction_cutoff_s: float = -1.0     # full traction this long after a demand (< 0: cut at once)
     max_traction_mps2: float = 0.0      # traction that holds (or regains) the cruising speed
+    cruise_speed_mps: float = -1.0      # the cruising speed (< 0: speed_mps); above it, the train pulls
     gradient_permille: float = 0.0      # positive uphill
     speed_error: float = 0.0            # the reported speed is true / (1 + speed_error)
     mass_kg: float = 400000.0
@@ -169,6 +172,7 @@ LIMITS = {
     "duration_s": (0.0, 86400.0), "demand_delay_cycles": (0, 50),
     "speed_mps": (0.0, 120.0), "service_decel_mps2": (0.0, 20.0), "brake_delay_s": (0.0, 5.0),
     "brake_buildup_s": (0.0, 60.0), "traction_cutoff_s": (-1.0, 30.0), "max_traction_mps2": (0.0, 5.0),
+    "cruise_speed_mps": (-1.0, 120.0),
     "gradient_permille": (-60.0, 60.0), "speed_error": (0.0, 0.5), "mass_kg": (1.0, 1e8), "davis_a_n": (0.0, 1e7),
     "davis_b_n_per_mps": (0.0, 1e6), "davis_c_n_per_mps2": (0.0, 1e5), "slippery_factor": (0.0, 1.0),
     "degraded_factor": (0.0, 1.0),
@@ -487,6 +491,7 @@ RUN_TRAIN = ("speed_mps", "service_decel_mps2", "emergency_decel_mps2", "brake_b
 RUN_TRAIN_WHY = {
     "brake_delay_s": "the player's brakes have no dead time (only the ramp brake_buildup_s)",
     "max_traction_mps2": "the player's train does not accelerate (no traction after a release)",
+    "cruise_speed_mps": "the player's train does not accelerate (it cruises at speed_mps)",
     "gradient_permille": "the player's track is level",
     "speed_error": "the player reports the true speed",
     "slippery_factor": "the player's brakes keep their decelerations on a slippery track",

@@ -49,6 +49,72 @@ def test_symbolic_run_refuses_what_it_cannot_follow():
         symbolic.explore(lambda x: 7 // x, {"x": x}, [-1 <= x, x <= 1])
 
 
+def _c_program(text: str):
+    from pycparser import c_parser
+
+    from verification.physics import c_symbolic
+
+    return c_symbolic.Program(c_parser.CParser().parse("typedef int int32_t; typedef long long int64_t;\n" + text))
+
+
+def test_the_c_interpreter_divides_as_c_does_and_refuses_what_it_cannot_follow():
+    """C's `/` truncates towards zero: (1 - 5) / 3 is -1 in C (Python's // gives -2); a
+    numerator of either sign is two paths, each exact."""
+    prog = _c_program("int32_t f(int32_t x) { int64_t y = x - 5; return y / 3; }")
+    x = z3.Real("x")
+    paths = symbolic.explore(lambda x: prog.call("f", [x]), {"x": x}, [0 <= x, x <= 10])
+    assert len(paths) == 2
+    for at, c_value, floor_value in ((1, -1, -2), (8, 1, None)):
+        path = next(p for p in paths if z3.Solver().check(x == at, *p.condition) == z3.sat)
+        # C's value is one of the path's (sound); Python's floor is not (the semantics is C's)
+        assert z3.Solver().check(x == at, *path.condition, *path.side, path.value == c_value) == z3.sat
+        if floor_value is not None:
+            assert z3.Solver().check(x == at, *path.condition, *path.side, path.value == floor_value) == z3.unsat
+    assert prog.call("f", [1]) == -1 and prog.call("f", [-10]) == -5
+    for bad in ("int32_t f(int32_t x) { return x % 3; }", "int32_t f(int32_t x) { return g(x); }",
+                "int32_t f(int32_t x) { int32_t a[2] = {0, 0}; return a[x]; }"):
+        with pytest.raises(symbolic.Unsupported):
+            symbolic.explore(lambda x: _c_program(bad).call("f", [x]), {"x": x}, [0 <= x, x <= 1])
+
+
+def test_the_c_curves_are_the_shipped_c_and_a_c_only_weakening_fails_the_proof(tmp_path):
+    """The integer obligations run on rg_core.c itself: its curves equal braking.py's on a
+    sample (the interpreter follows the C), and a rounding turned down in the C alone, which the
+    Python's proof cannot see, is refuted."""
+    import random
+
+    from verification.physics import c_symbolic
+
+    cfg = Config()
+    shipped_c = obligations.c_code()
+    rnd = random.Random(30)
+    for _ in range(300):
+        args = (cfg, rnd.randint(0, 12000), rnd.randint(0, 1), rnd.randint(0, 1), rnd.randint(-15000, 27000),
+                rnd.randint(0, 300))
+        service = rnd.random() < 0.3
+        assert shipped_c.curves(*args, service) == braking.curves(*args, service=service), args
+        assert shipped_c.ebi_dm(*args, service) == braking.ebi_dm(*args, service=service), args
+    d = Declaration.of(cfg)
+    only_normal = [c for c in obligations.CONDITIONS if c[2] == "normal"]
+    down = weakenings.Weakening("c-rounding-down", "rg_run_dm rounded down", (),
+                                (("    return (num + 199999999) / 200000000;", "    return num / 200000000;"),))
+    core = weakenings.weakened_core(down, tmp_path / "core")
+    import verification.physics.obligations as ob
+    saved, ob.CONDITIONS = ob.CONDITIONS, only_normal
+    try:
+        weak = {r.name.split(" (")[0]: r for r in ob.integer_results(cfg, d, ob.c_code(core))}
+        sound = {r.name.split(" (")[0]: r for r in ob.integer_results(cfg, d, shipped_c)}
+    finally:
+        ob.CONDITIONS = saved
+    assert all(r.proved for r in sound.values()), [r.line() for r in sound.values()]
+    refuted = [n for n, r in weak.items() if r.status == "refuted"]
+    assert "integer C EBI >= real, normal" in refuted, [r.line() for r in weak.values()]
+    assert weak["integer C EBI >= real, normal"].phase == "rg_core.c rg_curves(service=0, RG_SUPERVISED_PERIODS).ebi_dm"
+    # the Python, untouched, still proves: only the C's own proof sees this edit
+    assert braking.curves(cfg, 3000, 0, 0, 3000, 0) == shipped_c.curves(cfg, 3000, 0, 0, 3000, 0)
+    assert c_symbolic.curves(core)(cfg, 3001, 0, 0, 3000, 0).ebi_dm < braking.curves(cfg, 3001, 0, 0, 3000, 0).ebi_dm
+
+
 # ---------------------------------------------------------------- the model's invariants
 
 
@@ -154,10 +220,21 @@ def test_verify_physics_cli_proves_everything_and_catches_every_weakening(physic
         assert f"physics: planted weakening {w.name} is caught" in names
     saved = json.loads((out / "physics" / "physics.json").read_text())
     replays = {w["weakening"]: w["replay"] for w in saved["weakenings"]}
-    # the two weakenings whose shortfall exceeds the other terms' slack collide; the shipped core stops
-    for name in ("gradient-uphill", "oncoming-ignored"):
+    # four weakenings collide where the shipped core stops (replayed on the declaration with a
+    # perfect speedometer, the fastest point that falls short by more than a cycle's travel)
+    for name in ("traction-dropped", "gradient-uphill", "buildup-halved", "oncoming-ignored"):
         assert replays[name]["weakened"]["outcome"] == "collision", replays[name]
         assert replays[name]["shipped"]["outcome"] != "collision", replays[name]
+    # the other two stop: the sampling period's one cycle inside the standstill margin (5 m),
+    # where the shipped core keeps it; the speed error's well short, because the curves count
+    # it twice (the train at v_max, the obstacle at closing - v_min), which no world realises
+    weak, sound = replays["sampling-ignored"]["weakened"], replays["sampling-ignored"]["shipped"]
+    assert weak["outcome"] == sound["outcome"] == "stopped", replays["sampling-ignored"]
+    assert weak["margin_m"] < 5.0 <= sound["margin_m"], replays["sampling-ignored"]
+    weak, sound = replays["speed-error-ignored"]["weakened"], replays["speed-error-ignored"]["shipped"]
+    assert weak["outcome"] == sound["outcome"] == "stopped" and weak["margin_m"] < sound["margin_m"] - 5
+    assert {w["weakening"]: w["replay_declaration"]["speed_error_permille"] for w in saved["weakenings"]} == {
+        w.name: 20 if w.name == "speed-error-ignored" else 0 for w in weakenings.WEAKENINGS}
     # every replayed scenario plays in `railguard cosim` as the report says
     r = replays["gradient-uphill"]
     fmu = r["command"].split("--monitor-fmu ")[1]

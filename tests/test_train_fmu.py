@@ -129,6 +129,25 @@ def test_traction_is_held_for_traction_cutoff_after_the_demand(train):
     assert acc[:20] == [pytest.approx(0.0)] * 20 and acc[20:] == [pytest.approx(-3.0)] * 30
 
 
+def test_a_cruising_speed_above_the_start_speed_pulls_at_full_traction_until_the_demand(train):
+    """cruise_speed 25 m/s from 20 m/s: max_traction (0.5 m/s^2) until the demand, then held
+    for traction_cutoff as ever (the declaration's worst train: accelerating when the brake
+    is demanded); the default (-1) cruises at initial_speed, and the check refuses > 120."""
+    pull = train(initial_speed=20.0, cruise_speed=25.0, traction_cutoff=0.8, max_traction=0.5, brake_delay=0.2,
+                 brake_buildup=0.0, emergency_decel=3.0, **NO_DRAG)
+    acc = [a for (a,) in pull.run(0, 2.0, watch=("acceleration",))]
+    assert acc[1:] == [pytest.approx(0.5)] * 199                        # pulls, far from 25 m/s
+    assert pull.get("true_speed") == pytest.approx(21.0, abs=0.01)
+    acc = [a for (a,) in pull.run(2, 1.0, watch=("acceleration",))]
+    assert acc[:20] == [pytest.approx(0.5)] * 20 and acc[20:80] == [pytest.approx(0.5 - 3.0)] * 60
+    assert acc[80:] == [pytest.approx(-3.0)] * 20
+    cruise = train(initial_speed=20.0, max_traction=0.5, **NO_DRAG)
+    cruise.run(0, 2.0)
+    assert cruise.get("true_speed") == pytest.approx(20.0)
+    with pytest.raises(FMICallException):
+        train(initial_speed=20.0, cruise_speed=130.0)
+
+
 def test_the_reported_speed_is_low_by_speed_error_of_itself(train):
     t = train(initial_speed=40.0, speed_error=0.02)
     t.run(0, 0.5)

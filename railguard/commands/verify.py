@@ -15,7 +15,8 @@ from ..setup import braking_config
 PYTHON_NEEDS = {"closed_loop": ("stormpy",), "hazard": ("stormpy",), "mutation": ("pytest", "hypothesis")}
 INSTALL = {"closed_loop": "pip install -e '.[verify]'", "hazard": "pip install -e '.[verify]'",
            "mutation": "pip install -e '.[test]'",
-           "proof": "apt-get install frama-c-base why3 z3 cvc4 gcc && why3 config detect"}
+           "proof": "apt-get install frama-c-base why3 z3 cvc4 gcc && why3 config detect",
+           "physics": "apt-get install gcc (its cpp preprocesses the C core; gcc builds the replays' FMUs)"}
 
 
 def missing_tools(parts: tuple[str, ...]) -> list[str]:
@@ -29,6 +30,8 @@ def missing_tools(parts: tuple[str, ...]) -> list[str]:
             from verification.proof import missing_tools as proof_missing
 
             gone = proof_missing() + ([] if shutil.which("gcc") else ["gcc"])
+        elif part == "physics":
+            gone = [t for t in ("cpp", "gcc") if shutil.which(t) is None]
         else:
             gone = [n for n in PYTHON_NEEDS.get(part, ()) if importlib.util.find_spec(n) is None]
         if gone:
@@ -103,7 +106,7 @@ def register(sub) -> None:
                     "declaration (physics: one line per proof obligation) and mutation testing. Prints one line per check; exit status 1 if any check fails. The tools each "
                     "part needs are checked first: stormpy (closed_loop, hazard: pip install -e '.[verify]'), "
                     "frama-c, why3, z3, cvc4 and gcc (proof: apt-get install frama-c-base why3 z3 cvc4 gcc, then "
-                    "why3 config detect); a missing one stops with one line naming it, exit 2.",
+                    "why3 config detect), cpp and gcc (physics); a missing one stops with one line naming it, exit 2.",
     )
     v.add_argument("--quick", action="store_true",
                    help="smaller Monte Carlo runs and grids, the declaration in force only, and without the long "

@@ -78,34 +78,55 @@ def weakening_run(job: tuple) -> dict:
     w = weakenings.by_name(name)
     t0 = time.perf_counter()
     module = weakenings.weakened_braking(w)
-    failed = [r for r in obligations.integer_results(cfg, Declaration.of(cfg), module) if not r.proved]
-    row = {"weakening": w.name, "what": w.what, "caught": bool(failed), "failed": [r.name for r in failed],
-           "replay": None}
-    target = next((r for r in failed if r.context["curve"] == "ebi" and not r.context["service"]
+    folder = out_dir / "physics" / w.name
+    core = weakenings.weakened_core(w, folder / "core")
+    d = Declaration.of(cfg)
+    failed = [r for r in obligations.integer_results(cfg, d, module) if not r.proved]
+    failed_c = [r for r in obligations.integer_results(cfg, d, obligations.c_code(core)) if not r.proved]
+    # caught only when the proof fails on the weakened Python and on the weakened C alike
+    row = {"weakening": w.name, "what": w.what, "caught": bool(failed) and bool(failed_c),
+           "failed": [r.name for r in failed + failed_c], "replay": None}
+    # the replay's declaration (replay.replay_declaration): the proof must fail on it too
+    played = replay.replay_declaration(cfg, w.name)
+    replay_failed = failed if played == cfg or not replay_all else [
+        r for r in obligations.integer_results(played, Declaration.of(played), module) if not r.proved]
+    target = next((r for r in replay_failed if r.context["curve"] == "ebi" and not r.context["service"]
                    and not r.context["track"] and not r.context["brake"]), None)
+    row["replay_declaration"] = {"speed_error_permille": played.speed_error_permille}
     if target is not None and replay_all:
-        folder = out_dir / "physics" / w.name
         table = curves_only_table(read("m1"))            # the scenarios' table too (replay.write_scenario)
-        fmu = build.build_monitor(table, 2, folder, name="weakened-monitor.fmu",
-                                  core_dir=weakenings.weakened_core(w, folder / "core"))
+        fmu = build.build_monitor(table, 2, folder, name="weakened-monitor.fmu", core_dir=core)
         shipped = build.build_monitor(table, 2, folder, name="shipped-monitor.fmu")
         train = build.build_train(folder)
-        for oncoming in (False, True):
-            point = replay.worst_point(cfg, module, target, oncoming=oncoming)
-            if point is None:
-                continue
-            kind = "oncoming" if oncoming else "static"
-            path, figures = replay.write_scenario(cfg, point, module, f"{w.name} ({w.what}): {target.name}, "
-                                                  f"{kind} obstacle", folder / f"{w.name}-{kind}.toml")
+        points = [(oncoming, replay.worst_point(played, module, target, oncoming=oncoming))
+                  for oncoming in (False, True)]
+        tries = [(oncoming, point, pulling) for oncoming, point in points if point is not None
+                 for pulling in replay.PULLING]
+        for oncoming, point, pulling in tries:
+            kind = ("oncoming" if oncoming else "static") + ("" if pulling else ", cruising")
+            name = f"{w.name}-{kind.replace(', ', '-')}"
+            path, figures = replay.write_scenario(played, point, module, f"{w.name} ({w.what}): {target.name}, "
+                                                  f"{kind} obstacle", folder / f"{name}.toml", pulling)
             weak, sound = replay.play(path, fmu, train), replay.play(path, shipped, train)
             entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
                      "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
-            if row["replay"] is None or (weak["outcome"] == "collision" and sound["outcome"] != "collision"):
+            # kept: the first collision, else the replay where the weakened monitor stops nearest
+            # (struck at standstill by an oncoming obstacle is no stop margin of the train's)
+            if row["replay"] is None or replay_rank(entry) < replay_rank(row["replay"]):
                 row["replay"] = entry
-            if weak["outcome"] == "collision" and sound["outcome"] != "collision":
+            if replay_rank(entry)[0] == 0:
                 break
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def replay_rank(entry: dict) -> tuple:
+    """Order of replays: a collision of the weakened monitor where the shipped one does not
+    collide first, then the weakened monitor's stop margin (smallest first)."""
+    weak, sound = entry["weakened"], entry["shipped"]
+    if weak["outcome"] == "collision" and sound["outcome"] != "collision":
+        return (0, 0.0)
+    return (1, weak["margin_m"] if weak["outcome"] == "stopped" else float("inf"))
 
 
 def prove_task(job: tuple) -> list:

@@ -9,7 +9,8 @@ Three kinds, each named after the phase or the piece of code it covers:
   curve (emergency: EBI; service: the service-brake curve alpha1), obstacle kind (static,
   receding, oncoming) and reported condition (normal, slippery, degraded, both);
 * `integer`: the integer curves of the shipped monitor/core/braking.py, run symbolically
-  (symbolic.py), are never shorter than the real-valued ones, on every path (item 3);
+  (symbolic.py), and those of the C core's rg_curves (c_symbolic.py), are never shorter than
+  the real-valued ones, on every path (item 3);
 * `release`: the release rule with the obstacle memory as an inductive invariant over one
   cycle (release.py, item 4).
 
@@ -19,9 +20,10 @@ unknown on a timeout; only `proved` counts.
 from __future__ import annotations
 
 import time
+from functools import lru_cache
 from dataclasses import dataclass, field
 from fractions import Fraction
-from types import ModuleType
+from types import SimpleNamespace
 from typing import Callable, Optional
 
 import z3
@@ -39,6 +41,7 @@ CONDITIONS = ((0, 0, "normal"), (1, 0, "slippery"), (0, 1, "degraded"), (1, 1, "
 SERVICE_CONDITIONS = CONDITIONS[:1]   # the core uses the service curve (the table's alpha1) under normal conditions only
 KINDS = ("static", "receding", "oncoming")
 CURVES = ("ebd", "ebi", "sbi", "warning")
+STEPS_FROM = {"sbi": "ebi", "warning": "sbi"}     # each curve is the one before it plus a lead's run
 TIMEOUT_MS = 60000
 EXPLORE_TIMEOUT_MS = 2000     # a branch side Z3 cannot rule out this fast is followed (sound: one more path)
 
@@ -256,9 +259,30 @@ def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Re
 # -------------------------------------------------------------------------------- integer
 
 
-def integer_results(cfg: Config, d: Declaration, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
+@lru_cache(maxsize=1)
+def chain_holds() -> bool:
+    """The linear step behind a chained curve, proved once over fresh reals: with R, P the
+    integer curve and the one before it, r, p the real ones and `reach` the farthest distance,
+    R - P >= r - p, (P >= p or P >= reach) and r >= p give R >= r or R >= reach."""
+    R, P, r, p, reach = z3.Reals("R P r p reach")
+    return refute(z3.And(R - P >= r - p, z3.Or(P >= p, P >= reach), r >= p, R < r, R < reach))[0] == "proved"
+
+
+def c_code(core_dir=None) -> SimpleNamespace:
+    """The C core's curves (rg_core.c's rg_curves, run symbolically by c_symbolic) in the
+    place of braking.py's: `curves` with RG_SUPERVISED_PERIODS, `ebi_dm` with RG_ZONE_PERIODS."""
+    from . import c_symbolic
+
+    where = core_dir or c_symbolic.CORE_DIR
+    return SimpleNamespace(curves=c_symbolic.curves(where), ebi_dm=c_symbolic.ebi_dm(where), LABEL="C ",
+                           WHERE="rg_core.c rg_curves")
+
+
+def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIMEOUT_MS,
                     progress: Callable[[str], None] = lambda _: None) -> list[Result]:
-    """The shipped integer curves (`braking.curves`, run symbolically) against the real ones."""
+    """The shipped integer curves (`braking.curves`, run symbolically; or the C's, `c_code()`)
+    against the real ones."""
+    lang, source = getattr(braking, "LABEL", ""), getattr(braking, "WHERE", "braking")
     s, c, a = z3.Reals("speed_cms closing_cms age_ms")
     domain = [0 <= s, s <= MAX_SPEED_CMS, -MAX_CLOSING_CMS <= c, c <= MAX_TRACK_CLOSING_CMS,
               0 <= a, a <= cfg.timeout_cycles * cfg.period_ms]
@@ -278,21 +302,42 @@ def integer_results(cfg: Config, d: Declaration, braking: ModuleType, timeout_ms
                                ZONE_PERIODS if service else SUPERVISED_PERIODS)
             names = ("ebi",) if service else CURVES
             proved_facts = [[] for _ in paths]       # per path: curves already proved there (sound hypotheses)
+            proved_on = {name: set() for name in names}
             for name in names:
+                before = None if service else STEPS_FROM.get(name)
+                # the real curves grow in this order (each adds a lead's run)
+                grew = before is not None and refute(z3.And(*domain, getattr(real, name) < getattr(real, before)),
+                                                     timeout_ms)[0] == "proved"
                 label = "alpha1" if service else name.upper()
-                where = "braking.ebi_dm(service=True)" if service else f"braking.curves().{name}_dm"
-                r = Result(f"integer {label} >= real, {cond} ({len(paths)} paths of {fn.__name__})", "integer", where,
-                           context={"curve": name, "service": service, "track": track, "brake": brake})
+                where = (f"{source}.ebi_dm(service=True)" if service and not lang else
+                         f"{source}(service=1, RG_ZONE_PERIODS).ebi_dm" if service else
+                         f"{source}.curves().{name}_dm" if not lang else
+                         f"{source}(service=0, RG_SUPERVISED_PERIODS).{name}_dm")
+                r = Result(f"integer {lang}{label} >= real, {cond} ({len(paths)} paths of {fn.__name__})", "integer",
+                           where, context={"curve": name, "service": service, "track": track, "brake": brake,
+                                           "code": "C" if lang else "Python"})
                 t1 = time.perf_counter()
                 status, model = "proved", None
                 for i, p in enumerate(paths):
                     rounded = (p.value if service else getattr(p.value, f"{name}_dm")) / 10
                     # shorter than the real curve, where that matters: below the farthest distance the
                     # core ever compares a curve with (a voted or remembered obstacle is never farther)
-                    st, m = refute(z3.And(*domain, *p.condition, *p.side, *proved_facts[i], rounded < getattr(real, name),
-                                          rounded < reach), timeout_ms)
+                    chained = False
+                    if before is not None and grew and i in proved_on[before]:
+                        # a lemma: this curve exceeds the one before it (EBI for SBI, SBI for the
+                        # warning) by at least the real curves' difference. With the one before
+                        # proved on this path and the real curves growing, the curve follows by
+                        # linear arithmetic alone (CHAIN, checked once), which nlsat finds slowly
+                        prev = getattr(p.value, f"{before}_dm") / 10
+                        gap = rounded - prev < getattr(real, name) - getattr(real, before)
+                        chained = chain_holds() and refute(z3.And(*domain, *p.condition, *p.side, gap),
+                                                           timeout_ms)[0] == "proved"
+                    st, m = ("proved", None) if chained else refute(
+                        z3.And(*domain, *p.condition, *p.side, *proved_facts[i], rounded < getattr(real, name),
+                               rounded < reach), timeout_ms)
                     if st == "proved":
                         proved_facts[i].append(z3.Or(rounded >= getattr(real, name), rounded >= reach))
+                        proved_on[name].add(i)
                     if st != "proved":
                         status, model = st, m
                         if model is not None:
@@ -303,13 +348,15 @@ def integer_results(cfg: Config, d: Declaration, braking: ModuleType, timeout_ms
                 r.status = status
                 r.seconds = time.perf_counter() - t1 + explored / len(names)
                 out.append(r)
-            progress(f"physics: integer curves, {'service' if service else 'emergency'}, {cond}: "
+            progress(f"physics: integer curves ({'C' if lang else 'Python'}), {'service' if service else 'emergency'}, {cond}: "
                      f"{len(paths)} paths, {time.perf_counter() - t0:.1f} s")
     return out
 
 
-def check_all(cfg: Config, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
-              progress: Callable[[str], None] = lambda _: None) -> list[Result]:
+def check_all(cfg: Config, braking, timeout_ms: int = TIMEOUT_MS,
+              progress: Callable[[str], None] = lambda _: None, core_dir=None) -> list[Result]:
+    """Every obligation: the phases, sufficiency, the release rule, and the integer curves of
+    braking.py (`braking`) and of the C core (`core_dir`, default the shipped one)."""
     d = Declaration.of(cfg)
     out = invariant_results(d, timeout_ms)
     progress(f"physics: {len(out)} differential invariants")
@@ -319,4 +366,5 @@ def check_all(cfg: Config, braking: ModuleType, timeout_ms: int = TIMEOUT_MS,
 
     rel = release_results(cfg, d, timeout_ms)
     progress(f"physics: the release rule over one cycle: {sum(r.proved for r in rel)} of {len(rel)} proved")
-    return out + suff + rel + integer_results(cfg, d, braking, timeout_ms, progress)
+    return (out + suff + rel + integer_results(cfg, d, braking, timeout_ms, progress)
+            + integer_results(cfg, d, c_code(core_dir), timeout_ms, progress))

@@ -6,9 +6,26 @@ obstacle, the true speed the measured one plus the speed error, a fresh report) 
 integer curve falls shortest of the real one, doubling the shortfall until it can no more.
 The scenario puts the world's train at the declaration's corner there: the guaranteed
 deceleration, the whole equivalent build-up as dead time, full traction until the cut-off,
-the steepest downhill, the speed under-reported by the whole error; the sensors' range is the
-integer curve at that point, so the monitor first sees the obstacle on its emergency curve.
+the steepest downhill, the speed under-reported by the whole error. The sensors' range puts
+the first reading one cycle's travel inside the shipped EBI: the obstacle came into range
+just after a reading, one cycle after the last reading that found it beyond EBI. With the
+cycle from a reading to the demand at the train, these are the two periods the supervised
+EBI counts, so the shipped monitor meets its curve's worst case there exactly.
 `railguard cosim FILE` plays it (with `--monitor-fmu` for a weakened core's FMU).
+
+Why a replay needs speed, and a declaration with a perfect speedometer. Two monitors that
+first read the obstacle at the same distance differ little: inside the weakened EBI both
+demand the emergency at once; between the two EBIs the weakened one demands the service brake
+(the point is inside its SBI) and the emergency two cycles later, when it holds the brake
+inside SBI. A replay collides when that lateness exceeds the standstill margin and the slack
+the curve has at that point, which is why `worst_point` takes the fastest point. The largest slack is
+the speed error, counted twice by design: the train's travel at the highest true speed
+(v_max) and the obstacle's at the closing speed less the lowest true speed (v_min), which no
+single world realises (a static obstacle seen by a train whose speed is under-reported by 2 %
+leaves about 80 m at 69 m/s, measured in this tool's first replays: the obstacle's 2.7 m/s
+counted over a 33 s stop). `replay_declaration`
+therefore plays every weakening that does not concern the speed error on the declaration with
+speed error 0, on which the proof fails too.
 """
 from __future__ import annotations
 
@@ -30,6 +47,12 @@ PLAYABLE_OBSTACLE_CMS = 6000       # an oncoming obstacle of the replay: at most
 APPROACH_S = 3                     # the train cruises this long before the obstacle comes into range
 
 
+def replay_declaration(cfg: Config, weakening_name: str) -> Config:
+    """The declaration a weakening's counterexample is replayed on: `cfg` with speed error 0,
+    except for the weakening of the speed error itself (see the module doc)."""
+    return cfg if weakening_name == "speed-error-ignored" else cfg._replace(speed_error_permille=0)
+
+
 def declaration_si(cfg: Config) -> dict:
     """A braking declaration (monitor/declaration.py keys, SI) that converts back to cfg's integers."""
     def dec(x: int, scale: int):
@@ -47,11 +70,17 @@ def declaration_si(cfg: Config) -> dict:
             "standstill_margin_m": dec(cfg.standstill_margin_dm, 10)}
 
 
-def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool = False,
-                limit_m: float = 1024.0) -> Optional[dict]:
+SPEED_FLOORS_CMS = (11000, 9000, 7000, 5000, 3000, 0)   # tried fastest first (worst_point)
+SHORTFALLS_M = (1024, 256, 64, 16, 4, 0)                # an oncoming obstacle: the largest shortfall first
+
+
+def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool = False) -> Optional[dict]:
     """The playable point (integers: measured speed and closing speed in cm/s, report age 0)
-    where the refuted curve falls shortest of the real one, with a static obstacle, or an
-    oncoming one; None when no playable point falls short."""
+    with a static obstacle (the fastest train) or an oncoming one (the largest shortfall),
+    where the refuted curve falls short of the real one by more than a cycle's travel and a
+    metre: there the weakened monitor first reads the obstacle outside its own EBI
+    (scenario_text), and a cycle's lateness grows with the speed while the standstill margin
+    does not. None when no playable point falls so short."""
     ctx = result.context
     name, track, brake, service = ctx["curve"], ctx["track"], ctx["brake"], ctx["service"]
     d = Declaration.of(cfg)
@@ -64,30 +93,39 @@ def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool
     paths = symbolic.explore(braking.curves, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,
                                               "closing_cms": c, "age_ms": a, "service": service}, domain)
     real = getattr(real_curves(d, s / 100, c / 100, a / 1000, track, brake, service), name)
-    best, k = None, 0.0
-    while k <= limit_m:
-        found = None
+    late = c / 100 * q(Fraction(cfg.period_ms, 1000)) + 1          # a cycle's travel and a metre, in m
+    # static: the fastest train; oncoming: the largest shortfall (the obstacle's own travel)
+    floors = [(0, k) for k in SHORTFALLS_M] if oncoming else [(f, 0) for f in SPEED_FLOORS_CMS]
+    for floor, shortfall in floors:
         for p in paths:
             rounded = getattr(p.value, f"{name}_dm") / 10
-            # the shipped curve there is at least the real one, and the sensors' range must reach it
-            _, model = refute(z3.And(*domain, *p.condition, *p.side, real - rounded > q(Fraction(k).limit_denominator()),
-                                     real <= q(Fraction(MAX_DISTANCE_DM, 10)) - 50), 20000)
+            # the sensors' range must reach the shipped curve there
+            _, model = refute(z3.And(*domain, s >= floor, *p.condition, *p.side, real - rounded > late,
+                                     real - rounded > shortfall, real <= q(Fraction(MAX_DISTANCE_DM, 10)) - 50),
+                              20000)
             if model is not None:
-                found = {"speed_cms": int(value(model, s)), "closing_cms": int(value(model, c)), "age_ms": 0,
-                         "track": track, "brake": brake, "service": service, "curve": name,
-                         "shortfall_m": value(model, real - rounded)}
-                break
-        if found is None:
-            break
-        best = found
-        k = max(1.0, 2 * k)
-    return best
+                return {"speed_cms": int(value(model, s)), "closing_cms": int(value(model, c)), "age_ms": 0,
+                        "track": track, "brake": brake, "service": service, "curve": name,
+                        "shortfall_m": value(model, real - rounded)}
+    return None
 
 
-def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table: Path) -> tuple[str, dict]:
+CRUISE_ABOVE_MPS = 5.0     # the train's cruising speed this far above the point's: it pulls all along
+# The replays try the pulling train first, then the cruising one: a weakened monitor is one or
+# two cycles late (it escalates at its EBI, or inside its SBI once it holds the service brake),
+# and the train's acceleration moves its EBI between readings, which decides which.
+PULLING = (True, False)
+SIGHTING_INSIDE_M = 0.1    # the first reading this far inside the shipped EBI: the sensors' dm rounding
+
+
+def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table: Path,
+                  pulling: bool = True) -> tuple[str, dict]:
     """The cosim scenario of a counterexample point (monitor/scenario.py's language) and its
-    figures. The obstacle comes into range on the shipped code's emergency curve, so that the
-    shipped monitor brakes at once there and the weakened one later, on its own curve."""
+    figures. The obstacle comes into range one cycle's travel inside the shipped code's
+    emergency curve, so that the shipped monitor brakes at once there and the weakened one at
+    least a cycle later. `pulling`: the train pulls at full traction until the demand (the
+    declaration's worst train), else it cruises; both are inside the declaration, and which
+    one makes the weakened monitor later depends on where its curve lies (PULLING)."""
     import json
 
     from monitor.core import braking as shipped
@@ -97,8 +135,16 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     e = cfg.speed_error_permille / 1000
     true_speed = min(point["speed_cms"] * (1 + e), MAX_SPEED_CMS) / 100
     obstacle = max(0.0, point["closing_cms"] / 100 - true_speed)
-    seen_at = max(1.0, ebi_shipped)
-    position = seen_at + (true_speed + obstacle) * APPROACH_S
+    # pulling: full traction downhill until the demand (the cruising speed is above any it
+    # reaches); cruising: downhill, it coasts. It starts slower either way, so that its speed
+    # at the first reading is the point's
+    pull = (cfg.max_accel_mms2 / 1000 if pulling else 0.0) + 9.81 * cfg.max_gradient_permille / 1000
+    start_speed = max(0.0, true_speed - pull * APPROACH_S)
+    cruise = min(120.0, true_speed + CRUISE_ABOVE_MPS) if pulling else -1.0
+    # one cycle's travel inside the shipped EBI: the obstacle came into range just after a
+    # reading, a cycle after the last reading that found it beyond EBI (the sampling period)
+    seen_at = max(1.0, ebi_shipped - (true_speed + obstacle) * cfg.period_ms / 1000 - SIGHTING_INSIDE_M)
+    position = seen_at + start_speed * APPROACH_S + pull * APPROACH_S ** 2 / 2 + obstacle * APPROACH_S
     worst = min(a for _, a in emergency_bands(cfg)) / 1000 - 9.81 * cfg.max_gradient_permille / 1000
     duration = APPROACH_S + cfg.emergency_buildup_ms / 1000 + cfg.traction_cutoff_ms / 1000 + true_speed / worst + 20
     bands = [[lo / 100, a / 1000] for lo, a in emergency_bands(cfg)]
@@ -106,22 +152,26 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
              f"table = {json.dumps(str(table))}  # the curves alone: the table never asks for braking", "",
              "[train]  # the declaration's corner: guaranteed deceleration, the whole build-up as dead time,",
              "         # full traction until the cut-off, the steepest downhill, the speed under-reported",
-             f"speed_mps = {true_speed:.2f}",
+             f"speed_mps = {start_speed:.4f}  # {true_speed:.2f} m/s at the first reading, {APPROACH_S} s later",
+             f"cruise_speed_mps = {cruise:.2f}  # " + ("above every speed it reaches: full traction until the demand"
+                                                      if pulling else "cruising, coasting downhill"),
              f"emergency_decel_mps2 = {json.dumps(bands if len(bands) > 1 else bands[0][1])}",
              f"service_decel_mps2 = {cfg.service_decel_mms2 / 1000}",
              f"brake_delay_s = {cfg.emergency_buildup_ms / 1000}", "brake_buildup_s = 0.0",
              f"traction_cutoff_s = {cfg.traction_cutoff_ms / 1000}", f"max_traction_mps2 = {cfg.max_accel_mms2 / 1000}",
              f"gradient_permille = {-cfg.max_gradient_permille}", f"speed_error = {e}", "",
-             "[[obstacles]]", f"position_m = {position:.1f}", f"speed_mps = {-obstacle:.2f}",
+             "[[obstacles]]", f"position_m = {position:.4f}", f"speed_mps = {-obstacle:.2f}",
              f"type = \"{'train' if obstacle > 0 else 'static'}\"", "",
-             f"[sensors]  # in range on the shipped EBI ({ebi_shipped:.1f} m); the weakened EBI is {ebi_weak:.1f} m",
-             f"range_m = {seen_at:.1f}", "noise_sigma_m = 0.0", "", "[braking]"]
+             f"[sensors]  # first reading a cycle's travel inside the shipped EBI ({ebi_shipped:.1f} m), outside "
+             f"the weakened EBI ({ebi_weak:.1f} m)",
+             f"range_m = {seen_at + 0.05:.2f}", "noise_sigma_m = 0.0", "", "[braking]"]
     lines += [f"{k} = {json.dumps(v)}" for k, v in declaration_si(cfg).items()]
     return "\n".join(lines) + "\n", {"true_speed_mps": true_speed, "obstacle_speed_mps": obstacle,
                                       "ebi_shipped_m": ebi_shipped, "ebi_weakened_m": ebi_weak}
 
 
-def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path: Path) -> tuple[Path, dict]:
+def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path: Path,
+                   pulling: bool = True) -> tuple[Path, dict]:
     """The scenario file and, beside it, the curves-only table it names."""
     from fmu.acceptance import curves_only_table
     from monitor.tables import read
@@ -129,7 +179,7 @@ def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path:
     path.parent.mkdir(parents=True, exist_ok=True)
     table = path.parent / "curves-only.rgt"
     table.write_bytes(curves_only_table(read("m1")))
-    text, figures = scenario_text(cfg, point, weak, title, table.resolve())
+    text, figures = scenario_text(cfg, point, weak, title, table.resolve(), pulling)
     path.write_text(text)
     return path, figures
 

@@ -7,8 +7,9 @@ The result is one `Path` per feasible path: its condition and the value `fn` ret
 as Z3 terms over the inputs.
 
 Integers are relaxed to reals, soundly: an input ranges over the reals of its interval, and
-`x // c` (c > 0) becomes a fresh real q with c q <= x < c q + c. Every integer run of `fn` is
-one of the relaxed runs, so a property proved for every relaxed run holds for every integer
+`x // c` (c > 0) becomes a fresh real q with c q <= x <= c q + c - 1 (the numerator is an
+integer in every run of the code, which is what makes C's rounding-up idiom `(x + c - 1) / c`
+provably at least x / c). Every integer run of `fn` is one of the relaxed runs, so a property proved for every relaxed run holds for every integer
 input; Z3 then works in real arithmetic, which its nlsat procedure decides. (The relaxation
 may, in principle, admit a counterexample no integer run has; the counterexample's replay
 shows which it is.)
@@ -36,8 +37,9 @@ class Explorer:
         self.domain = list(domain)
         self.side_conditions: list = []      # floor-division constraints, path-independent
         self.timeout_ms = timeout_ms
-        self.forced: list[tuple[bool, bool]] = []    # the prefix to replay, with its unexplored sides
-        self.taken: list[tuple[bool, bool]] = []     # (side taken, other side feasible and unexplored)
+        self.forced: list[tuple[bool, bool, bool]] = []   # the prefix to replay, with its unexplored sides
+        # (side taken, other side feasible and unexplored, both sides feasible: the condition is carried)
+        self.taken: list[tuple[bool, bool, bool]] = []
         self.condition: list = []
         self._fresh = itertools.count()
 
@@ -56,23 +58,25 @@ class Explorer:
     def decide(self, cond) -> bool:
         i = len(self.taken)
         if i < len(self.forced):
-            side = self.forced[i][0]
+            side, _, needed = self.forced[i]
             self.taken.append(self.forced[i])
         else:
             can_true, can_false = self.feasible(cond), self.feasible(z3.Not(cond))
             if not (can_true or can_false):
                 raise Unsupported("a branch with neither side feasible: the path condition is inconsistent")
             side = can_true
-            self.taken.append((side, can_true and can_false))
-        self.condition.append(cond if side else z3.Not(cond))
+            needed = can_true and can_false       # else the side taken is implied: no need to carry it
+            self.taken.append((side, needed, needed))
+        if needed:
+            self.condition.append(cond if side else z3.Not(cond))
         return side
 
     def next_path(self) -> bool:
         """Set up the next run: flip the deepest branch whose other side is still unexplored."""
         for i in range(len(self.taken) - 1, -1, -1):
-            side, other = self.taken[i]
+            side, other, _ = self.taken[i]
             if other:
-                self.forced = self.taken[:i] + [(not side, False)]
+                self.forced = self.taken[:i] + [(not side, False, True)]
                 self.taken, self.condition = [], []
                 return True
         return False
@@ -147,7 +151,8 @@ def floor_div(ex: Explorer, x, d) -> SymInt:
     else:
         raise Unsupported(f"a division by {type(d).__name__}")
     q = ex.fresh("q")
-    ex.side_conditions += [dt * q <= x, x < dt * q + dt]
+    # the numerator is an integer in every run of the code: d q <= x <= d q + d - 1
+    ex.side_conditions += [dt * q <= x, x <= dt * q + dt - 1]
     return SymInt(ex, q)
 
 

@@ -52,6 +52,7 @@ typedef struct {
     double davis_c;         /* N.s2/m2 */
     double gradient;        /* per mille, positive uphill */
     double max_traction;    /* m/s2 */
+    double cruise_setting;  /* m/s, the cruise controller's target (the cruise_speed parameter); < 0: initial_speed */
     double service_decel;   /* m/s2 */
     double emergency_decel; /* m/s2, below emergency_band2_speed (or at every speed) */
     double emergency_band2_speed; /* m/s, 0: no band 2 */

@@ -395,6 +395,7 @@ void model_set_start_values(ModelData *m)
     m->davis_c = 8.0;
     m->gradient = 0.0;
     m->max_traction = 0.5;
+    m->cruise_setting = -1.0;
     m->service_decel = 1.0;
     m->emergency_decel = 3.0;
     m->emergency_band2_speed = 0.0;
@@ -457,6 +458,8 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     if (bad_nonneg(m->davis_c)) FAIL("davis_c = %g: must be finite and >= 0", m->davis_c);
     if (!isfinite(m->gradient) || m->gradient < -60.0 || m->gradient > 60.0)
         FAIL("gradient = %g: must be in [-60, 60] per mille", m->gradient);
+    if (isnan(m->cruise_setting) || m->cruise_setting > 120.0)
+        FAIL("cruise_speed = %g: must be <= 120 m/s (negative: initial_speed)", m->cruise_setting);
     if (bad_nonneg(m->max_traction))
         FAIL("max_traction = %g: must be finite and >= 0", m->max_traction);
     if (bad_nonneg(m->service_decel))
@@ -528,7 +531,7 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     m->time = 0.0;
     m->steps = 0;
     m->cell_demand = 0;
-    m->cruise_speed = m->initial_speed;
+    m->cruise_speed = (m->cruise_setting >= 0.0) ? m->cruise_setting : m->initial_speed;
     m->phase = (m->initial_speed > 0.0) ? TRAIN_RUNNING : TRAIN_WAITING;
     m->seen_release = 0;
     m->brake_decel = 0.0;
@@ -647,6 +650,7 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_davis_c: return m->davis_c;
     case vr_gradient: return m->gradient;
     case vr_max_traction: return m->max_traction;
+    case vr_cruise_speed: return m->cruise_setting;
     case vr_service_decel: return m->service_decel;
     case vr_emergency_decel: return m->emergency_decel;
     case vr_emergency_band2_speed: return m->emergency_band2_speed;
@@ -736,6 +740,7 @@ void model_set_real(ModelData *m, uint32_t vr, double v)
     case vr_davis_c: m->davis_c = v; break;
     case vr_gradient: m->gradient = v; break;
     case vr_max_traction: m->max_traction = v; break;
+    case vr_cruise_speed: m->cruise_setting = v; break;
     case vr_service_decel: m->service_decel = v; break;
     case vr_emergency_decel: m->emergency_decel = v; break;
     case vr_emergency_band2_speed: m->emergency_band2_speed = v; break;
