@@ -11,7 +11,8 @@ def proofs_md(proofs: list, assumptions: tuple) -> str:
           "and downhill), the rest of the equivalent build-up coasting downhill, braking by speed band at the "
           "guaranteed deceleration times the reported adhesion factors less the downhill pull; every bound a "
           "variable inside the declaration. The integer obligations run the shipped `monitor/core/braking.py` "
-          "on symbolic numbers (every path).\n\nAssumptions of the model:\n"]
+          "and the C core's `rg_curves` (fmu/c/core/rg_core.c, preprocessed, parsed and interpreted with C's "
+          "semantics) on symbolic numbers (every path).\n\nAssumptions of the model:\n"]
     md += [f"- {a}" for a in assumptions]
     for label, results in proofs:
         by_kind = {}
@@ -31,10 +32,13 @@ def proofs_md(proofs: list, assumptions: tuple) -> str:
 def weakenings_md(rows: list) -> str:
     md = ["\n### Planted weakenings\n",
           "Each is the same edit to `monitor/core/braking.py` and `fmu/c/core/rg_core.c` "
-          "(verification/physics/weakenings.py). The proof must fail on it; its counterexample (the playable "
-          "point where the weakened EBI falls shortest of the real one) is written as a cosim scenario with the "
-          "world's train at the declaration's corner and the sensors' range at the shipped EBI, and played with "
-          "a monitor FMU built from the weakened C and with the shipped one.\n"]
+          "(verification/physics/weakenings.py). The proof must fail on the weakened Python and on the weakened "
+          "C. Its counterexample (the fastest playable point where the weakened EBI falls short of the real one "
+          "by more than a cycle's travel; for an oncoming obstacle, the largest shortfall) is written as a cosim "
+          "scenario on the declaration with speed error 0 (the speed error's own weakening keeps it): the "
+          "world's train at the declaration's corner, pulling at full traction until the demand or cruising, "
+          "the first reading one cycle's travel inside the shipped EBI; it is played with a monitor FMU built "
+          "from the weakened C and with the shipped one (verification/physics/replay.py says why).\n"]
     table = []
     for r in rows:
         rp = r["replay"]
