@@ -1,8 +1,11 @@
 """Closed-loop acceptance of the braking curves (issue 11, Deliver 6): the train FMU is the
-world and brakes as badly as the braking declaration allows, corners included; the
-monitor supervises it with the curves of that declaration; the demand reaches the train
-one monitor cycle late; the obstacle is first visible where the curves say a brake must
-start, plus one cycle of travel. Required: no collision (contact while our train moves).
+world and brakes as badly as the braking declaration allows, corners included (a train
+pulling at full traction until the brake demand among them); the monitor supervises it with
+the curves of that declaration; the demand reaches the train one monitor cycle late; the
+obstacle is first read one cycle's travel inside EBI, at the speed the train has then (the
+sampling period's worst case, which the supervised EBI counts: the cycle before, it was out
+of range and at least EBI away). Required: no collision (contact while our train moves), and
+inside the declaration every stop `standstill_margin` short, as the physics proof says.
 
 `grid_cases` builds the grid, `run_cases` runs it through a `fmu.cosim.Loop`,
 `beyond_cases` builds the sweep outside the declaration, and `python -m fmu.acceptance`
@@ -28,6 +31,7 @@ NOMINAL_SERVICE = 1.0
 UPHILL = 10.0                                  # per mille: the uphill corner of the grid
 APPROACH_S = 2.0                               # the obstacle enters sensor range this long after t = 0
 PERIOD_S = 0.1
+PULL_ABOVE_MPS = 5.0                           # a pulling train's cruising speed above any it reaches
 MAX_RUN_S = 300.0     # room to stop even if a revocable emergency is released and the train rides the curves down
 
 
@@ -47,6 +51,7 @@ class World:
     brake: int = 0              # reported degraded brakes, with the decelerations x degraded_factor
     slippery_factor: float = 1.0
     degraded_factor: float = 1.0
+    pulling: bool = False       # full traction until the demand (the train FMU's cruise_speed above its speed)
 
     @property
     def buildup_s(self) -> float:
@@ -75,20 +80,33 @@ class World:
         cond = {(0, 0): "normal", (1, 0): "slippery", (0, 1): "degraded", (1, 1): "slippery+degraded"}[
             (self.track, self.brake)]
         return (f"decel {bands}, dead {self.dead_s:g} s + ramp {self.ramp_s:g} s, gradient {self.gradient:+g}, "
-                f"traction {self.traction_s:g} s, speed error {self.speed_error:g}, {cond}")
+                f"{'pulling, ' if self.pulling else ''}traction {self.traction_s:g} s, speed error {self.speed_error:g}, "
+                f"{cond}")
+
+    def approach_accel(self) -> float:
+        """The train's acceleration before the demand: full traction when pulling, plus the
+        downhill pull it coasts with (the cruise controller has no brake); uphill and level
+        it holds its speed."""
+        downhill = -self.gradient * 9.81e-3 if self.gradient < 0 else 0.0
+        return (self.max_traction if self.pulling else 0.0) + downhill
 
 
 @dataclass(frozen=True)
 class Case:
     world: World
-    speed: float                # initial (and cruising) speed, m/s
+    speed: float                # the true speed at the first reading, m/s
     obstacle_speed: float       # m/s along the track
     visible_m: float            # sensor range: the obstacle is first seen this far ahead
 
     def train_params(self) -> dict:
-        closing = self.speed - self.obstacle_speed
-        return {**self.world.params(), "initial_speed": self.speed, "obstacle.present": True,
-                "obstacle.position": self.visible_m + closing * APPROACH_S, "obstacle.speed": self.obstacle_speed,
+        """The train starts slower by what it gains before the first reading (approach_accel),
+        so that it reads the obstacle at `speed`, `visible_m` ahead, APPROACH_S after t = 0."""
+        a = self.world.approach_accel()
+        start = max(0.0, self.speed - a * APPROACH_S)
+        travel = start * APPROACH_S + a * APPROACH_S ** 2 / 2 - self.obstacle_speed * APPROACH_S
+        return {**self.world.params(), "initial_speed": start, "obstacle.present": True,
+                "cruise_speed": min(120.0, self.speed + PULL_ABOVE_MPS) if self.world.pulling else -1.0,
+                "obstacle.position": self.visible_m + travel, "obstacle.speed": self.obstacle_speed,
                 "obstacle.type": 0 if self.obstacle_speed == 0 else 2, "sensor.range": self.visible_m}
 
 
@@ -121,20 +139,22 @@ def declared_bands(values: dict) -> tuple:
 
 def first_visible_m(cfg: Config, speed: float, obstacle_speed: float, world: World) -> float:
     """Where the curves say a brake must start (EBI as the monitor computes it from what
-    the train reports), plus one cycle of travel at the closing speed."""
+    the train reports), less one cycle of travel at the closing speed: the first reading
+    comes one cycle after the last one that found the obstacle beyond EBI."""
     closing = speed - obstacle_speed
     measured = read_speed_cms(speed / (1.0 + world.speed_error))
     ebi = curves(cfg, measured, world.track, world.brake, read_closing_cms(closing), 0).ebi_dm / 10
-    return ebi + closing * PERIOD_S
+    return ebi - closing * PERIOD_S
 
 
 def grid_worlds(values: dict) -> list[World]:
     """The trains within the declaration `values` (SI keys), corners included: actual
     deceleration at the guaranteed band values and at nominal; dead time and ramp whose
     equivalent build-up is the declared one (all dead time, all ramp, half each);
-    steepest downhill, level, uphill; traction held for traction_cutoff_s or cut at
-    once; the speed reported low by speed_error or exact; normal, slippery (deceleration
-    x slippery_factor) or degraded (x degraded_factor) reported."""
+    steepest downhill, level, uphill; pulling at full traction until the demand and held
+    for traction_cutoff_s after it, or cruising and cut at once; the speed reported low by
+    speed_error or exact; normal, slippery (deceleration x slippery_factor) or degraded
+    (x degraded_factor) reported."""
     t_be = values["emergency_buildup_s"]
     decels = ((declared_bands(values), float(values["service_decel"])), (((0.0, NOMINAL_DECEL),), NOMINAL_SERVICE))
     timings = ((t_be, 0.0), (0.0, 2 * t_be), (t_be / 2, t_be))
@@ -145,7 +165,7 @@ def grid_worlds(values: dict) -> list[World]:
             decels, timings, gradients, (float(values["traction_cutoff_s"]), 0.0),
             (float(values["speed_error"]), 0.0), conditions):
         worlds.append(World(bands, service, dead, ramp, grad, traction, err, float(values["max_accel"]), track, brake,
-                            float(values["slippery_factor"]), float(values["degraded_factor"])))
+                            float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=traction > 0))
     return worlds
 
 
@@ -196,11 +216,12 @@ BUILDUP_S = (1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0)
 
 def hardest_world(values: dict) -> World:
     """The grid's hardest corner: guaranteed decelerations, all dead time, steepest
-    downhill, traction held, speed reported low, normal conditions."""
+    downhill, pulling until the demand and traction held, speed reported low, normal
+    conditions."""
     return World(declared_bands(values), float(values["service_decel"]), float(values["emergency_buildup_s"]), 0.0,
                  -float(values["max_downhill_gradient"]), float(values["traction_cutoff_s"]),
                  float(values["speed_error"]), float(values["max_accel"]), 0, 0,
-                 float(values["slippery_factor"]), float(values["degraded_factor"]))
+                 float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=True)
 
 
 def beyond_cases(values: dict) -> dict:

@@ -110,7 +110,6 @@ def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool
     return None
 
 
-CRUISE_ABOVE_MPS = 5.0     # the train's cruising speed this far above the point's: it pulls all along
 # The replays try the pulling train first, then the cruising one: a weakened monitor is one or
 # two cycles late (it escalates at its EBI, or inside its SBI once it holds the service brake),
 # and the train's acceleration moves its EBI between readings, which decides which.
@@ -128,6 +127,7 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     one makes the weakened monitor later depends on where its curve lies (PULLING)."""
     import json
 
+    from fmu.acceptance import PULL_ABOVE_MPS
     from monitor.core import braking as shipped
 
     args = (cfg, point["speed_cms"], point["track"], point["brake"], point["closing_cms"], 0)
@@ -140,7 +140,7 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     # at the first reading is the point's
     pull = (cfg.max_accel_mms2 / 1000 if pulling else 0.0) + 9.81 * cfg.max_gradient_permille / 1000
     start_speed = max(0.0, true_speed - pull * APPROACH_S)
-    cruise = min(120.0, true_speed + CRUISE_ABOVE_MPS) if pulling else -1.0
+    cruise = min(120.0, true_speed + PULL_ABOVE_MPS) if pulling else -1.0
     # one cycle's travel inside the shipped EBI: the obstacle came into range just after a
     # reading, a cycle after the last reading that found it beyond EBI (the sampling period)
     seen_at = max(1.0, ebi_shipped - (true_speed + obstacle) * cfg.period_ms / 1000 - SIGHTING_INSIDE_M)
