@@ -226,10 +226,17 @@ def test_verify_names_missing_tools_and_how_to_install_them(tmp_path):
     assert "proof" in line
 
 
+def _interactive_sigint() -> None:
+    """Ctrl-C as a user at a terminal has it: the default disposition. A launcher that runs
+    the tests as a background job (`cmd &` in a script) ignores SIGINT, and an ignored SIGINT
+    is inherited, which would make this test about the launcher, not about railguard."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_in_a_campaign_is_one_line_and_exit_130(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "railguard", "campaign", "--quick", "--workers", "2", "--out",
                              str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-                            env=ENV, start_new_session=True)
+                            env=ENV, start_new_session=True, preexec_fn=_interactive_sigint)
     started = time.monotonic()
     while time.monotonic() - started < 120:          # wait until the workers are busy with core runs
         line = proc.stderr.readline()
