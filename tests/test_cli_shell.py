@@ -116,6 +116,36 @@ def test_table_show_takes_a_shipped_name():
     assert cli("table", "show").stdout.splitlines()[0].endswith("model m2")
 
 
+def test_table_show_m2_is_read_in_a_minute_and_full_has_every_transition():
+    """Issue 31 item 5: the summary fits 200 lines of at most 160 characters and names every
+    node's action and its successors (all of them, or the most observed and how many more);
+    --full lists every successor of every node."""
+    import re
+
+    from monitor.core.table import decode
+    from monitor.tables import read
+
+    t = decode(read("m2"))
+    res = cli("table", "show", "m2")
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert len(lines) <= 200 and max(len(line) for line in lines) <= 160
+    rows = lines[lines.index(next(line for line in lines if line.startswith("node  action"))) + 1:]
+    assert len(rows) == t.nodes
+    for n, row in enumerate(rows):
+        assert row.split()[:2] == [str(n), t.actions[t.action[n]]]
+        shown = [int(x) for x in re.findall(r"(\d+) <- \d+ obs", row)]
+        more = re.search(r"\+(\d+) more \(--full\)", row)
+        targets = set(t.next[n])
+        assert set(shown) <= targets and len(shown) + (int(more.group(1)) if more else 0) == len(targets), row
+        counts = [int(x) for x in re.findall(r"<- (\d+) obs", row)]
+        assert counts == sorted(counts, reverse=True)                     # the most observed first
+    full = cli("table", "show", "m2", "--full").stdout.splitlines()
+    rows = full[full.index(next(line for line in full if line.startswith("node  action"))) + 1:]
+    assert {int(x) for x in re.findall(r"(\d+) <- ", rows[0].split(None, 2)[2])} == set(t.next[0])
+    assert max(len(line) for line in full) > 160                          # nothing left out there
+
+
 def test_build_fmu_writes_under_railguard_out_and_lists_every_file(tmp_path):
     res = cli("build-fmu", "--table", "m1", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
