@@ -35,6 +35,27 @@ PULL_ABOVE_MPS = 5.0                           # a pulling train's cruising spee
 MAX_RUN_S = 300.0     # room to stop even if a revocable emergency is released and the train rides the curves down
 
 
+def approach_accel(max_traction: float, gradient_permille: float, pulling: bool) -> float:
+    """The train FMU's acceleration before a brake demand: full traction when pulling, plus
+    the downhill pull it coasts with (its cruise controller has no brake); uphill and level
+    it holds its speed."""
+    downhill = -gradient_permille * 9.81e-3 if gradient_permille < 0 else 0.0
+    return (max_traction if pulling else 0.0) + downhill
+
+
+def approach(speed: float, accel: float, seconds: float) -> tuple[float, float]:
+    """(start speed, distance run) of a train that accelerates at `accel` for `seconds` to
+    reach `speed`: a scenario starts it slower, so that it meets the obstacle at `speed`."""
+    start = max(0.0, speed - accel * seconds)
+    return start, start * seconds + accel * seconds ** 2 / 2
+
+
+def cruise_speed(speed: float, pulling: bool) -> float:
+    """The train FMU's cruise_speed: above any speed a pulling train reaches (so it pulls at
+    full traction all along), else -1 (it cruises at its initial speed)."""
+    return min(120.0, speed + PULL_ABOVE_MPS) if pulling else -1.0
+
+
 @dataclass(frozen=True)
 class World:
     """One way the real train brakes (the train FMU's parameters the declaration bounds)."""
@@ -84,11 +105,8 @@ class World:
                 f"{cond}")
 
     def approach_accel(self) -> float:
-        """The train's acceleration before the demand: full traction when pulling, plus the
-        downhill pull it coasts with (the cruise controller has no brake); uphill and level
-        it holds its speed."""
-        downhill = -self.gradient * 9.81e-3 if self.gradient < 0 else 0.0
-        return (self.max_traction if self.pulling else 0.0) + downhill
+        """The train's acceleration before the demand (approach_accel)."""
+        return approach_accel(self.max_traction, self.gradient, self.pulling)
 
 
 @dataclass(frozen=True)
@@ -101,12 +119,11 @@ class Case:
     def train_params(self) -> dict:
         """The train starts slower by what it gains before the first reading (approach_accel),
         so that it reads the obstacle at `speed`, `visible_m` ahead, APPROACH_S after t = 0."""
-        a = self.world.approach_accel()
-        start = max(0.0, self.speed - a * APPROACH_S)
-        travel = start * APPROACH_S + a * APPROACH_S ** 2 / 2 - self.obstacle_speed * APPROACH_S
+        start, travel = approach(self.speed, self.world.approach_accel(), APPROACH_S)
         return {**self.world.params(), "initial_speed": start, "obstacle.present": True,
-                "cruise_speed": min(120.0, self.speed + PULL_ABOVE_MPS) if self.world.pulling else -1.0,
-                "obstacle.position": self.visible_m + travel, "obstacle.speed": self.obstacle_speed,
+                "cruise_speed": cruise_speed(self.speed, self.world.pulling),
+                "obstacle.position": self.visible_m + travel - self.obstacle_speed * APPROACH_S,
+                "obstacle.speed": self.obstacle_speed,
                 "obstacle.type": 0 if self.obstacle_speed == 0 else 2, "sensor.range": self.visible_m}
 
 

@@ -112,7 +112,8 @@ def test_the_c_curves_are_the_shipped_c_and_a_c_only_weakening_fails_the_proof(t
     assert weak["integer C EBI >= real, normal"].phase == "rg_core.c rg_curves(service=0, RG_SUPERVISED_PERIODS).ebi_dm"
     # the Python, untouched, still proves: only the C's own proof sees this edit
     assert braking.curves(cfg, 3000, 0, 0, 3000, 0) == shipped_c.curves(cfg, 3000, 0, 0, 3000, 0)
-    assert c_symbolic.curves(core)(cfg, 3001, 0, 0, 3000, 0).ebi_dm < braking.curves(cfg, 3001, 0, 0, 3000, 0).ebi_dm
+    weak_c = c_symbolic.curves(c_symbolic.program(core))
+    assert weak_c(cfg, 3001, 0, 0, 3000, 0).ebi_dm < braking.curves(cfg, 3001, 0, 0, 3000, 0).ebi_dm
 
 
 # ---------------------------------------------------------------- the model's invariants

@@ -245,7 +245,7 @@ class Program:
             raise _Return(None if node.expr is None else self.expr(node.expr, scope))
         elif kind == "EmptyStatement":
             pass
-        elif isinstance(node, c_ast.Node) and kind in ("Assignment", "FuncCall", "UnaryOp", "BinaryOp"):
+        elif kind in ("Assignment", "FuncCall", "UnaryOp", "BinaryOp"):
             self.expr(node, scope)
         else:
             raise Unsupported(f"a C statement {kind}")
@@ -386,9 +386,7 @@ class Program:
         raise Unsupported(f"an lvalue {kind}")
 
 
-def _entry(name: str, core_dir: Path) -> Callable:
-    prog = program(core_dir)
-
+def _entry(name: str, prog: "Program") -> Callable:
     def run(cfg, speed_cms, track, brake, closing_cms, age_ms, service=False):
         out = Struct({f: 0 for f in prog.structs["rg_curve_set"]})
         prog.call(name, [ConfigView(cfg), speed_cms, int(track), int(brake), closing_cms, age_ms, int(service),
@@ -398,14 +396,14 @@ def _entry(name: str, core_dir: Path) -> Callable:
     return run
 
 
-def curves(core_dir: Path = CORE_DIR) -> Callable:
-    """braking.curves, as rg_core.c computes it (RG_SUPERVISED_PERIODS)."""
-    return _entry("rg_verify_curves", core_dir)
+def curves(prog: "Program") -> Callable:
+    """braking.curves, as the parsed rg_core.c (`program`) computes it (RG_SUPERVISED_PERIODS)."""
+    return _entry("rg_verify_curves", prog)
 
 
-def ebi_dm(core_dir: Path = CORE_DIR) -> Callable:
-    """braking.ebi_dm, as rg_core.c computes it (RG_ZONE_PERIODS): the table's zone limits."""
-    run = _entry("rg_verify_zone", core_dir)
+def ebi_dm(prog: "Program") -> Callable:
+    """braking.ebi_dm, as the parsed rg_core.c computes it (RG_ZONE_PERIODS): the table's zone limits."""
+    run = _entry("rg_verify_zone", prog)
 
     def zone(cfg, speed_cms, track, brake, closing_cms, age_ms, service=False):
         return run(cfg, speed_cms, track, brake, closing_cms, age_ms, service).ebi_dm

@@ -20,9 +20,9 @@ unknown on a timeout; only `proved` counts.
 from __future__ import annotations
 
 import time
-from functools import lru_cache
 from dataclasses import dataclass, field
 from fractions import Fraction
+from functools import lru_cache
 from types import SimpleNamespace
 from typing import Callable, Optional
 
@@ -273,8 +273,8 @@ def c_code(core_dir=None) -> SimpleNamespace:
     place of braking.py's: `curves` with RG_SUPERVISED_PERIODS, `ebi_dm` with RG_ZONE_PERIODS."""
     from . import c_symbolic
 
-    where = core_dir or c_symbolic.CORE_DIR
-    return SimpleNamespace(curves=c_symbolic.curves(where), ebi_dm=c_symbolic.ebi_dm(where), LABEL="C ",
+    prog = c_symbolic.program(core_dir or c_symbolic.CORE_DIR)      # preprocessed and parsed once
+    return SimpleNamespace(curves=c_symbolic.curves(prog), ebi_dm=c_symbolic.ebi_dm(prog), LABEL="C ",
                            WHERE="rg_core.c rg_curves")
 
 
@@ -327,7 +327,7 @@ def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIME
                         # a lemma: this curve exceeds the one before it (EBI for SBI, SBI for the
                         # warning) by at least the real curves' difference. With the one before
                         # proved on this path and the real curves growing, the curve follows by
-                        # linear arithmetic alone (CHAIN, checked once), which nlsat finds slowly
+                        # linear arithmetic alone (chain_holds, checked once), which nlsat finds slowly
                         prev = getattr(p.value, f"{before}_dm") / 10
                         gap = rounded - prev < getattr(real, name) - getattr(real, before)
                         chained = chain_holds() and refute(z3.And(*domain, *p.condition, *p.side, gap),

@@ -127,7 +127,7 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     one makes the weakened monitor later depends on where its curve lies (PULLING)."""
     import json
 
-    from fmu.acceptance import PULL_ABOVE_MPS
+    from fmu.acceptance import approach, approach_accel, cruise_speed
     from monitor.core import braking as shipped
 
     args = (cfg, point["speed_cms"], point["track"], point["brake"], point["closing_cms"], 0)
@@ -138,13 +138,13 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     # pulling: full traction downhill until the demand (the cruising speed is above any it
     # reaches); cruising: downhill, it coasts. It starts slower either way, so that its speed
     # at the first reading is the point's
-    pull = (cfg.max_accel_mms2 / 1000 if pulling else 0.0) + 9.81 * cfg.max_gradient_permille / 1000
-    start_speed = max(0.0, true_speed - pull * APPROACH_S)
-    cruise = min(120.0, true_speed + PULL_ABOVE_MPS) if pulling else -1.0
+    pull = approach_accel(cfg.max_accel_mms2 / 1000, -cfg.max_gradient_permille, pulling)
+    start_speed, run = approach(true_speed, pull, APPROACH_S)
+    cruise = cruise_speed(true_speed, pulling)
     # one cycle's travel inside the shipped EBI: the obstacle came into range just after a
     # reading, a cycle after the last reading that found it beyond EBI (the sampling period)
     seen_at = max(1.0, ebi_shipped - (true_speed + obstacle) * cfg.period_ms / 1000 - SIGHTING_INSIDE_M)
-    position = seen_at + start_speed * APPROACH_S + pull * APPROACH_S ** 2 / 2 + obstacle * APPROACH_S
+    position = seen_at + run + obstacle * APPROACH_S
     worst = min(a for _, a in emergency_bands(cfg)) / 1000 - 9.81 * cfg.max_gradient_permille / 1000
     duration = APPROACH_S + cfg.emergency_buildup_ms / 1000 + cfg.traction_cutoff_ms / 1000 + true_speed / worst + 20
     bands = [[lo / 100, a / 1000] for lo, a in emergency_bands(cfg)]

@@ -9,8 +9,8 @@ as Z3 terms over the inputs.
 Integers are relaxed to reals, soundly: an input ranges over the reals of its interval, and
 `x // c` (c > 0) becomes a fresh real q with c q <= x <= c q + c - 1 (the numerator is an
 integer in every run of the code, which is what makes C's rounding-up idiom `(x + c - 1) / c`
-provably at least x / c). Every integer run of `fn` is one of the relaxed runs, so a property proved for every relaxed run holds for every integer
-input; Z3 then works in real arithmetic, which its nlsat procedure decides. (The relaxation
+provably at least x / c). Every integer run of `fn` is one of the relaxed runs, so a property
+proved for every relaxed run holds for every integer input; Z3 then works in real arithmetic, which its nlsat procedure decides. (The relaxation
 may, in principle, admit a counterexample no integer run has; the counterexample's replay
 shows which it is.)
 
