@@ -38,7 +38,7 @@ int main(void)
     char msg[200];
     rg_config_default(&cfg);
     t.bytes = RG_TABLE_BYTES; t.length = RG_TABLE_LENGTH; t.action_offset = RG_TABLE_ACTION_OFFSET;
-    t.next_offset = RG_TABLE_NEXT_OFFSET; t.nodes = RG_TABLE_NODES; t.observations = RG_TABLE_OBSERVATIONS;
+    t.next_offset = RG_TABLE_NEXT_OFFSET; t.risk_offset = RG_TABLE_RISK_OFFSET; t.nodes = RG_TABLE_NODES; t.observations = RG_TABLE_OBSERVATIONS;
     t.index_bytes = RG_TABLE_INDEX_BYTES; t.start = RG_TABLE_START; t.model = RG_TABLE_MODEL; t.period_ms = RG_TABLE_PERIOD_MS;
     if (rg_table_check(&t, &cfg, msg, sizeof msg)) { printf("table refused: %s\n", msg); return 1; }
     for (run = 0; run < 5; run++) {

@@ -80,7 +80,8 @@ def table_header(table: Table, data: bytes) -> str:
     """The table file as a const byte array plus its layout; the C core checks the bytes'
     SHA-256 against the trailer (and RG_TABLE_SHA256) before the first cycle."""
     n, z, w = table.nodes, len(table.observations), int(table.header["index_bytes"])
-    next_offset = len(data) - 32 - n * z * w
+    risk_offset = len(data) - 32 - 4 * n
+    next_offset = risk_offset - n * z * w
     action_offset = next_offset - n
     model = {"m1": 1, "m2": 2}[table.model]
     period = round(float(table.header["params"]["time_step_s"]) * 1000)
@@ -95,6 +96,7 @@ def table_header(table: Table, data: bytes) -> str:
         f"#define RG_TABLE_SHA256 \"{table.sha256}\"\n"
         f"#define RG_TABLE_MODEL {model}\n#define RG_TABLE_LENGTH {len(data)}u\n"
         f"#define RG_TABLE_ACTION_OFFSET {action_offset}u\n#define RG_TABLE_NEXT_OFFSET {next_offset}u\n"
+        f"#define RG_TABLE_RISK_OFFSET {risk_offset}u\n"
         f"#define RG_TABLE_NODES {n}u\n#define RG_TABLE_OBSERVATIONS {z}u\n#define RG_TABLE_INDEX_BYTES {w}u\n"
         f"#define RG_TABLE_START {table.start}u\n#define RG_TABLE_PERIOD_MS {period}\n\n"
         f"static const uint8_t RG_TABLE_BYTES[RG_TABLE_LENGTH] = {{\n" + "\n".join(rows) + "\n};\n\n#endif\n"

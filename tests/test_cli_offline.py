@@ -104,6 +104,14 @@ def test_solve_m1_then_table_show(capsys, tmp_path):
         assert int(fields[0]) == n
         assert fields[1] == t.actions[t.action[n]]
         assert fields[1] in ("maintain", "nominal_braking", "emergency_braking")
+        assert int(fields[2].replace(",", "")) == t.risk[n]          # the node's risk, ppm
+        shown_next = {int(piece.split()[0]) for piece in row.split(None, 3)[3].split("; ")}
+        assert shown_next == set(t.next[n])                        # every successor, likeliest first
+
+    code, out, err = run_main(capsys, ["table", "show", "--full", table_path])
+    assert code == 0, err
+    rows = [line for line in out.split("node  action", 1)[1].splitlines()[1:] if line.strip()]
+    for n, row in enumerate(rows):
         for obs in t.observations:  # every observation appears on the node's line
             assert obs in row
 
@@ -113,6 +121,7 @@ def test_solve_m1_then_table_show(capsys, tmp_path):
     assert shown["sha256"] == t.sha256
     assert shown["action"] == [t.actions[a] for a in t.action]
     assert shown["next"] == [list(r) for r in t.next]
+    assert shown["risk_ppm"] == list(t.risk)
     assert shown["header"]["model"] == "m1"
 
 

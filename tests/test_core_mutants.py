@@ -943,7 +943,7 @@ def test_table_length_check_is_exact():
 
     from monitor.core.table import TableError, decode
 
-    body = struct.pack("<8sHI", b"RGTABLE\n", 1, 0)
+    body = struct.pack("<8sHI", b"RGTABLE\n", 2, 0)
     data = body + hashlib.sha256(body).digest()
     assert len(data) == 46
     with pytest.raises(TableError, match="header is not valid JSON"):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import TABLES
-from monitor.core.table import FORMAT_VERSION, MAGIC, Table, TableError, decode, encode
+from monitor.core.table import FORMAT_VERSION, MAGIC, PPM, Table, TableError, decode, encode
 
 PREFIX = struct.Struct("<8sHI")
 
@@ -29,11 +29,13 @@ def small_header(**changes) -> dict:
 
 SMALL_ACTION = [0, 1, 1]
 SMALL_NEXT = [[0, 1, 2], [2, 2, 0], [1, 0, 1]]
+SMALL_RISK = [0, 123_456, PPM]
+RISK_INFO = {"unit": "ppm", "horizon_s": 30.0}
 
 
 @pytest.fixture
 def small() -> bytes:
-    return encode(small_header(), SMALL_ACTION, SMALL_NEXT)
+    return encode(small_header(), SMALL_ACTION, SMALL_NEXT, SMALL_RISK, RISK_INFO)
 
 
 def rehash(body: bytes) -> bytes:
@@ -63,6 +65,19 @@ def test_round_trip(small):
     assert t.header["index_bytes"] == 1
     assert t.header["nodes"] == 3
     assert t.header["format_version"] == FORMAT_VERSION
+    assert t.risk == tuple(SMALL_RISK) and t.risk_horizon_s == 30.0
+
+
+def test_a_table_made_without_a_risk_column_claims_none():
+    """encode without the solver's risk: every node at 10^6 ppm and the header says so, so a
+    hand-made table never shows a risk nobody computed."""
+    t = decode(encode(small_header(), SMALL_ACTION, SMALL_NEXT))
+    assert t.risk == (PPM,) * 3 and t.risk_horizon_s is None
+    assert "none computed" in t.header["risk"]["source"]
+    with pytest.raises(TableError, match="risk column"):
+        encode(small_header(), SMALL_ACTION, SMALL_NEXT, [0, 0, PPM + 1], RISK_INFO)
+    with pytest.raises(TableError, match="risk column"):
+        encode(small_header(), SMALL_ACTION, SMALL_NEXT, [0, 0], RISK_INFO)
 
 
 def test_layout_is_as_documented(small):
@@ -73,7 +88,8 @@ def test_layout_is_as_documented(small):
     assert header["model"] == "toy"
     body = small[PREFIX.size + hlen:-32]
     assert list(body[:3]) == SMALL_ACTION
-    assert list(body[3:]) == [m for row in SMALL_NEXT for m in row]
+    assert list(body[3:12]) == [m for row in SMALL_NEXT for m in row]
+    assert list(struct.unpack("<3I", body[12:])) == SMALL_RISK
 
 
 def test_encoding_is_deterministic_and_ignores_header_key_order():
@@ -136,12 +152,19 @@ def test_bad_magic(small):
         decode(rehash(bad[:-32]))
 
 
-@pytest.mark.parametrize("version", [0, 2, 0xFFFF])
+@pytest.mark.parametrize("version", [0, 3, 0xFFFF])
 def test_wrong_version(small, version):
     body = bytearray(small[:-32])
     struct.pack_into("<H", body, 8, version)
     with pytest.raises(TableError, match=f"version {version}"):
         decode(rehash(bytes(body)))  # refused for the version, not just the checksum
+
+
+def test_a_format_1_file_is_refused_with_the_way_to_rebuild_it(small):
+    body = bytearray(small[:-32])
+    struct.pack_into("<H", body, 8, 1)
+    with pytest.raises(TableError, match="version 1 has no risk column: rebuild it with `railguard table upgrade FILE`"):
+        decode(rehash(bytes(body)))
 
 
 def test_expect_model_mismatch_names_both_models(small):
@@ -152,8 +175,10 @@ def test_expect_model_mismatch_names_both_models(small):
 
 
 # well-formed checksums over malformed content: the checks behind the checksum must hold too
-BASE = dict(model="x", states=["a"], actions=["p", "q"], observations=["o1", "o2"], nodes=2, start=0, index_bytes=1)
-GOOD_BODY = bytes([0, 1, 0, 1, 1, 0])
+BASE = dict(model="x", states=["a"], actions=["p", "q"], observations=["o1", "o2"], nodes=2, start=0, index_bytes=1,
+            risk=RISK_INFO)
+RISK_BYTES = struct.pack("<2I", 5, PPM)
+GOOD_BODY = bytes([0, 1, 0, 1, 1, 0]) + RISK_BYTES
 
 
 @pytest.mark.parametrize(
@@ -161,8 +186,11 @@ GOOD_BODY = bytes([0, 1, 0, 1, 1, 0])
     [
         (BASE, GOOD_BODY[:-1], "body"),
         (BASE, GOOD_BODY + b"\x00", "body"),
-        (BASE, bytes([0, 2, 0, 1, 1, 0]), "action"),
-        (BASE, bytes([0, 1, 0, 2, 1, 0]), "next"),
+        (BASE, bytes([0, 2, 0, 1, 1, 0]) + RISK_BYTES, "action"),
+        (BASE, bytes([0, 1, 0, 2, 1, 0]) + RISK_BYTES, "next"),
+        (BASE, bytes([0, 1, 0, 1, 1, 0]) + struct.pack("<2I", 5, PPM + 1), "risk is above"),
+        ({k: v for k, v in BASE.items() if k != "risk"}, GOOD_BODY, "risk column"),
+        (dict(BASE, risk={"unit": "percent"}), GOOD_BODY, "risk column"),
         (dict(BASE, start=2), GOOD_BODY, "start"),
         (dict(BASE, start=-1), GOOD_BODY, "start"),
         (dict(BASE, start="0"), GOOD_BODY, "start"),
@@ -228,7 +256,7 @@ def test_more_than_256_nodes_use_two_byte_indices(n):
     assert t.next == tuple(tuple(r) for r in nxt)
     assert t.start == n - 1
     hlen = PREFIX.unpack_from(data)[2]
-    assert len(data) == PREFIX.size + hlen + n + n * 3 * 2 + 32
+    assert len(data) == PREFIX.size + hlen + n + n * 3 * 2 + 4 * n + 32
 
 
 def test_two_byte_table_byte_flips_are_refused():

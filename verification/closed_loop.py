@@ -23,23 +23,17 @@ import numpy as np
 import scipy.sparse as sp
 
 from monitor.core.table import decode
+from monitor.offline.closed_chain import bounded_reach, hazard_states, hazard_target, two_phase_chain
 from monitor.offline.controller import Controller, evaluate
 from monitor.offline.controller import rewards as controller_rewards
 from monitor.offline.models import load
+from monitor.offline.node_risk import HORIZON_S
 from monitor.offline.pipeline import ALPHAS_SUFFIX, model_digest, read_alphas
 from monitor.tables import read
 
 from .report import Check, Progress, Section, md_table
 
-HORIZON_S = 30.0
 AGREE = 1e-6
-
-
-def hazard_states(model) -> np.ndarray:
-    """Indices of the states the crash probability is about."""
-    if model.name == "m1":
-        return np.array([model.states.index("Crash")])
-    return np.array([i for i, s in enumerate(model.states) if s.startswith("critical")])
 
 
 @dataclass
@@ -61,48 +55,12 @@ def table_controller(name: str):
     return model, ctrl, table
 
 
-def two_phase_chain(model, ctrl: Controller) -> sp.csr_matrix:
-    """The closed loop as a chain with two transitions per cycle: A(n, s) -> B(n, s') with
-    T[a_n, s, s'] (the world moves), then B(n, s') -> A(m, s') with the probability that an
-    observation leads node n to m (the controller reads). The same process as
-    closed_loop_matrix, with far fewer transitions (m2: 2.5 million instead of 40)."""
-    S = model.shape[0]
-    N = ctrl.nodes
-    NS = N * S
-    rows, cols, vals = [], [], []
-    for n in range(N):
-        a = int(ctrl.action[n])
-        s_i, t_i = np.nonzero(model.T[a])
-        rows.append(n * S + s_i)
-        cols.append(NS + n * S + t_i)
-        vals.append(model.T[a][s_i, t_i])
-        W = np.zeros((S, N))              # W[s', m] = sum of O[a, s', o] over o with next[n, o] == m
-        np.add.at(W.T, ctrl.next[n], model.O[a].T)
-        t_j, m_j = np.nonzero(W)
-        rows.append(NS + n * S + t_j)
-        cols.append(m_j * S + t_j)
-        vals.append(W[t_j, m_j])
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * NS, 2 * NS))
-
-
-def bounded_reach(P: sp.csr_matrix, target: np.ndarray, steps: int) -> np.ndarray:
-    """x[i] = P(reach target within `steps` transitions from i): x_{k+1} = 1 on target, P x_k elsewhere."""
-    x = target.astype(np.float64)
-    for _ in range(steps):
-        x = P @ x
-        x[target] = 1.0
-    return x
-
-
 def hazard_within(model, ctrl: Controller, steps: int) -> tuple[float, sp.csr_matrix, np.ndarray]:
     """(P(hazard within `steps` cycles) from the start node and belief, two-phase chain,
     hazard labels), by bounded reachability."""
     S = model.shape[0]
-    NS = ctrl.nodes * S
     P = two_phase_chain(model, ctrl)
-    target = np.zeros(2 * NS, dtype=bool)
-    for s in hazard_states(model):
-        target[s:NS:S] = True
+    target = hazard_target(model, ctrl.nodes)
     x = bounded_reach(P, target, 2 * steps)
     return float(model.b0 @ x[ctrl.start * S:(ctrl.start + 1) * S]), P, target
 

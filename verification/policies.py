@@ -19,25 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from monitor.offline.closed_chain import EMERGENCY, supervised_product, supervision_floor, zone_of_observation
 from monitor.offline.controller import Controller, minimise
 
 BASELINES = ("threshold", "belief_tracking", "always_emergency", "never")
-EMERGENCY = 2
-
-
-def zone_of_observation(model) -> np.ndarray:
-    """Zone (0 free/far .. 3 critical) of each observation: Model 1 observes the zone,
-    Model 2's distance level is the first component (observations in product order)."""
-    Z = model.shape[2]
-    if model.name == "m1" or Z == 4:
-        return np.arange(Z)
-    return np.arange(Z) // (Z // 4)
-
-
-def supervision_floor(model) -> np.ndarray:
-    """The least demand the braking curves add after each observation: emergency in the
-    critical zone (inside EBI), nothing elsewhere."""
-    return np.where(zone_of_observation(model) == 3, EMERGENCY, 0).astype(np.int64)
+__all__ = ["BASELINES", "EMERGENCY", "BeliefTracking", "constant", "finite_baselines", "supervised",
+           "supervision_floor", "threshold", "zone_of_observation"]
 
 
 def constant(model, action: int) -> Controller:
@@ -56,17 +43,9 @@ def finite_baselines(model) -> dict[str, Controller]:
 
 
 def supervised(ctrl: Controller, floor: np.ndarray) -> Controller:
-    """The controller with the supervision in front, as one finite-state controller: node
-    (m, f) = controller node m after an observation whose floor is f; it demands
-    max(action[m], f). The start has no observation yet (floor 0)."""
-    levels = np.unique(np.r_[0, floor])
-    F = len(levels)
-    fidx = np.searchsorted(levels, floor)
-    N = ctrl.nodes
-    action = np.maximum(np.repeat(ctrl.action, F), np.tile(levels, N))
-    nxt = ctrl.next[:, None, :] * F + fidx[None, None, :]                  # (N, 1, Z) -> same for every f
-    nxt = np.repeat(nxt, F, axis=1).reshape(N * F, -1)
-    return minimise(Controller(action.astype(np.int64), nxt.astype(np.int64), ctrl.start * F))
+    """The controller with the supervision in front, as one minimal finite-state controller
+    (closed_chain.supervised_product, with nodes that behave alike merged)."""
+    return minimise(supervised_product(ctrl, floor)[0])
 
 
 class BeliefTracking:

@@ -7,6 +7,8 @@ Layout (little-endian):
     header  hlen     UTF-8 JSON: model, parameters, names, dimensions, values, bounds
     action  N bytes  action[node]
     next    N*Z*w    next[node][obs], w = header["index_bytes"] (1 or 2)
+    risk    N*4      u32 risk[node]: P(hazard within header["risk"]["horizon_s"] | node), in
+                     parts per million (monitor/offline/node_risk.py; format version 2 on)
     sha256  32 bytes over everything before it
 
 The online core and the C generator both read it through `decode`; a file that fails any
@@ -21,7 +23,10 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 MAGIC = b"RGTABLE\n"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+PPM = 1_000_000
+NO_RISK = {"unit": "ppm", "source": "none computed: every node at 10^6 ppm, the safe side"}
+UPGRADE_HINT = "rebuild it with `railguard table upgrade FILE` (or solve it again with `railguard solve`)"
 _PREFIX = struct.Struct("<8sHI")
 _DIGEST = 32
 REQUIRED = ("model", "states", "actions", "observations", "nodes", "start", "index_bytes")
@@ -39,6 +44,13 @@ class Table:
     action: tuple[int, ...]
     next: tuple[tuple[int, ...], ...]
     sha256: str
+    risk: tuple[int, ...] = ()
+
+    @property
+    def risk_horizon_s(self) -> float | None:
+        """The horizon the risk column is about (None: no risk was computed)."""
+        h = self.header.get("risk", {}).get("horizon_s")
+        return None if h is None else float(h)
 
     @property
     def model(self) -> str:
@@ -61,13 +73,22 @@ class Table:
         return int(self.header["start"])
 
 
-def encode(header: Mapping[str, Any], action: Sequence[int], nxt: Sequence[Sequence[int]]) -> bytes:
-    """Serialise a controller; the caller's header must name model, states, actions, observations."""
+def encode(header: Mapping[str, Any], action: Sequence[int], nxt: Sequence[Sequence[int]],
+           risk: Sequence[int] | None = None, risk_info: Mapping[str, Any] | None = None) -> bytes:
+    """Serialise a controller; the caller's header must name model, states, actions, observations.
+
+    `risk` (ppm per node) with `risk_info` (what it means: node_risk.describe) is the solver's
+    risk column; without it every node says 10^6 ppm and the header says none was computed,
+    so a hand-made table never claims a risk nobody computed."""
     n = len(action)
     z = len(header["observations"])
     width = 1 if n <= 256 else 2
     head = dict(header)
-    head.update(nodes=n, index_bytes=width, format_version=FORMAT_VERSION)
+    if risk is None:
+        risk, risk_info = [PPM] * n, NO_RISK
+    if risk_info is None or len(risk) != n or not all(0 <= int(r) <= PPM for r in risk):
+        raise TableError(f"risk column must give {n} values in [0, {PPM}] ppm with what they mean")
+    head.update(nodes=n, index_bytes=width, format_version=FORMAT_VERSION, risk=dict(risk_info))
     head.setdefault("start", 0)
     text = json.dumps(head, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("utf-8")
     body = bytearray(_PREFIX.pack(MAGIC, FORMAT_VERSION, len(text)))
@@ -78,6 +99,7 @@ def encode(header: Mapping[str, Any], action: Sequence[int], nxt: Sequence[Seque
         if len(row) != z:
             raise TableError(f"next row has {len(row)} entries, expected {z} observations")
         body += struct.pack(f"<{z}{fmt}", *(int(m) for m in row))
+    body += struct.pack(f"<{n}I", *(int(r) for r in risk))
     body += hashlib.sha256(body).digest()
     return bytes(body)
 
@@ -88,12 +110,25 @@ def _no_constant(name: str):
 
 def decode(data: bytes, expect_model: str | None = None) -> Table:
     """Check and decode a table file's bytes; refuse anything inconsistent."""
+    return _decode(data, expect_model, upgrading=False)
+
+
+def decode_for_upgrade(data: bytes) -> Table:
+    """A format-1 table (no risk column) decoded with the same checks, for `railguard table
+    upgrade` to add the column; never for running (its risk is empty)."""
+    return _decode(data, None, upgrading=True)
+
+
+def _decode(data: bytes, expect_model: str | None, upgrading: bool) -> Table:
     if len(data) < _PREFIX.size + _DIGEST:
         raise TableError(f"too short to be a table ({len(data)} bytes)")
     magic, version, hlen = _PREFIX.unpack_from(data)
     if magic != MAGIC:
         raise TableError("not a railguard table (bad magic bytes)")
-    if version != FORMAT_VERSION:
+    legacy = version == 1 and upgrading
+    if version == 1 and not legacy:
+        raise TableError(f"table format version 1 has no risk column: {UPGRADE_HINT}")
+    if version != FORMAT_VERSION and not legacy:
         raise TableError(f"table format version {version} is not supported (this build reads {FORMAT_VERSION})")
     digest = hashlib.sha256(data[:-_DIGEST]).digest()
     if digest != data[-_DIGEST:]:
@@ -117,8 +152,11 @@ def decode(data: bytes, expect_model: str | None = None) -> Table:
     if not (isinstance(n, int) and n > 0) or width not in (1, 2):
         raise TableError(f"bad dimensions: nodes={n!r}, index_bytes={width!r}")
     body = data[start + hlen:-_DIGEST]
-    if len(body) != n + n * z * width:
-        raise TableError(f"body is {len(body)} bytes, expected {n + n * z * width} for {n} nodes x {z} observations")
+    risk_bytes = 0 if legacy else 4 * n
+    if len(body) != n + n * z * width + risk_bytes:
+        raise TableError(f"body is {len(body)} bytes, expected {n + n * z * width + risk_bytes} for {n} nodes x {z} observations")
+    if not legacy and (not isinstance(header.get("risk"), dict) or header["risk"].get("unit") != "ppm"):
+        raise TableError(f"header lacks the risk column's description: {UPGRADE_HINT}")
     action = tuple(body[:n])
     if any(a >= n_actions for a in action):
         raise TableError(f"an action index is >= the {n_actions} actions")
@@ -127,8 +165,11 @@ def decode(data: bytes, expect_model: str | None = None) -> Table:
     if any(m >= n for m in flat):
         raise TableError(f"a next-node index is >= the {n} nodes")
     nxt = tuple(flat[i * z:(i + 1) * z] for i in range(n))
+    risk = () if legacy else struct.unpack_from(f"<{n}I", body, n + n * z * width)
+    if any(r > PPM for r in risk):
+        raise TableError(f"a node's risk is above {PPM} ppm")
     if not (isinstance(header["start"], int) and 0 <= header["start"] < n):
         raise TableError(f"start node {header['start']!r} out of range")
     if expect_model is not None and header["model"] != expect_model:
         raise TableError(f"table is for model {header['model']!r}, expected {expect_model!r}")
-    return Table(header=header, action=action, next=nxt, sha256=digest.hex())
+    return Table(header=header, action=action, next=nxt, sha256=digest.hex(), risk=risk)

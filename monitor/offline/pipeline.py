@@ -14,7 +14,10 @@ from ..core import table as table_format
 from . import pomdp_file
 from .controller import Compiled, compile_controller
 from .layered import ConditionLayer, base_model, compile_monotone
-from .models import Plan
+from .models import Plan, rebuild
+from .node_risk import describe as describe_risk
+from .node_risk import node_risk
+from .table_view import risk_range
 from .pomdp import POMDP
 from .relaxation import Relaxation, describe_upper
 from .solver import Progress, Solution, solve
@@ -26,7 +29,11 @@ ALPHAS_SUFFIX = ".alphas.npz"
 def write_alphas(path: Path, sol: Solution, table_sha256: str) -> None:
     """The solver's alpha vectors and their actions, tied to the table solved with them, for
     the online belief-tracking policy (seed 000 eq. 14) that verification compares with."""
-    np.savez_compressed(path, alphas=sol.alphas, actions=sol.actions, table_sha256=np.array(table_sha256))
+    write_alphas_arrays(path, sol.alphas, sol.actions, table_sha256)
+
+
+def write_alphas_arrays(path: Path, alphas: np.ndarray, actions: np.ndarray, table_sha256: str) -> None:
+    np.savez_compressed(path, alphas=alphas, actions=actions, table_sha256=np.array(table_sha256))
 
 
 def read_alphas(path: Path, table_sha256: str) -> tuple[np.ndarray, np.ndarray]:
@@ -162,8 +169,37 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
         comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress, deadline=deadline)
     relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
     ctrl = comp.controller
-    data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist())
+    say("risk column: each node's P(hazard within the horizon) on the exact closed loop")
+    step = time_step_of(model)
+    data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist(),
+                               node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
     return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed)
+
+
+def time_step_of(model: POMDP) -> float:
+    """The model's cycle in seconds (the papers' 0.1 s when a test model does not say)."""
+    return float(model.params.get("time_step_s", 0.1))
+
+
+def risk_column(table: table_format.Table) -> list[int]:
+    """Each node's risk (ppm) recomputed from the exact chain of the model the table names
+    (rebuilt from its header and checked against its model_sha256)."""
+    from .controller import Controller
+
+    model = rebuild(dict(table.header))
+    ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
+    return node_risk(model, ctrl, time_step_of(model)).tolist()
+
+
+def with_risk(data: bytes) -> tuple[bytes, table_format.Table]:
+    """A table file (format 1 or 2) re-encoded in the current format with its risk column
+    recomputed; the controller is unchanged, so only the header's risk and the digest move."""
+    old = table_format.decode_for_upgrade(data)
+    model = rebuild(dict(old.header))
+    step = time_step_of(model)
+    header = {k: v for k, v in old.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
+    new = table_format.encode(header, old.action, old.next, risk_column(old), describe_risk(model, step))
+    return new, old
 
 
 def relaxed_bound(relax: Relaxation, plan: Plan, deadline: float, say: Callable[[str], None]) -> Optional[RelaxedBound]:
@@ -256,5 +292,6 @@ def summary_text(result: Result) -> str:
         f"remaining gap    {gap_to_ub:.4f}   (upper bound - controller value: {f['certified_gap_percent']:.2f} % of |upper bound|;"
         " the table is within this of the optimum)",
         f"table            {f['table_bytes']} bytes, sha256 {f['sha256']}",
+        f"risk             {risk_range(table_format.decode(result.table))}",
     ]
     return "\n".join(lines) + "\n"

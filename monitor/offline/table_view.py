@@ -44,19 +44,40 @@ def _wrap(label: str, items: list[str], width: int = WIDTH) -> list[str]:
     return lines
 
 
-def _node_line(table: Table, n: int, full: bool, max_observations: int) -> str:
-    """A node's action and where its observations lead: every transition (full, or when it
-    fits in WIDTH), else its successors with how many observations lead to each, most first."""
-    head = f"{n:>4}  {table.actions[table.action[n]]:<18}  "
+def risk_range(table: Table) -> str:
+    """The risk column in a phrase: its range and median, or that none was computed."""
+    info = table.header.get("risk", {})
+    if not table.risk or info.get("horizon_s") is None:
+        return "none computed (every node at 10^6 ppm, the safe side)"
+    r = sorted(table.risk)
+    return (f"P(hazard within {info['horizon_s']:g} s | node) {r[0]:,} .. {r[-1]:,} ppm, "
+            f"median {r[len(r) // 2]:,} ppm")
+
+
+def _risk(table: Table, n: int) -> str:
+    return f"{table.risk[n]:>9,}" if table.risk else f"{'-':>9}"
+
+
+def _node_line(table: Table, n: int, full: bool, max_observations: int, successors=None) -> str:
+    """A node's action, risk and where it goes next. `full`: every transition. Otherwise, with
+    the closed loop's `successors` (N x N probabilities), the next nodes likeliest first;
+    without them, every transition when it fits in WIDTH, else the next nodes with how many
+    observations lead to each, most first."""
+    head = f"{n:>4}  {table.actions[table.action[n]]:<18} {_risk(table, n)}  "
     groups = _group_edges(table, n)
-    edges = []
-    for target, obs in groups:
-        shown = ", ".join(obs[:max_observations]) + (f", ... (+{len(obs) - max_observations})" if len(obs) > max_observations else "")
-        edges.append(f"{target} <- {shown}")
-    line = head + "; ".join(edges)
-    if full or len(line) <= WIDTH:
-        return line
-    ranked = [f"{target} <- {len(obs)} obs" for target, obs in sorted(groups, key=lambda g: (-len(g[1]), g[0]))]
+    if full or successors is None:
+        edges = []
+        for target, obs in groups:
+            shown = ", ".join(obs[:max_observations]) + (f", ... (+{len(obs) - max_observations})" if len(obs) > max_observations else "")
+            edges.append(f"{target} <- {shown}")
+        line = head + "; ".join(edges)
+        if full or len(line) <= WIDTH:
+            return line
+        ranked = [f"{target} <- {len(obs)} obs" for target, obs in sorted(groups, key=lambda g: (-len(g[1]), g[0]))]
+    else:
+        row = successors[n]
+        order = [int(m) for m in sorted({t for t, _ in groups}, key=lambda m: (-row[m], m))]
+        ranked = [f"{m} {_percent(row[m])}" for m in order]
 
     def shown(k: int) -> str:                 # the first k successors and how many are left out
         return head + "; ".join(ranked[:k]) + (f"; +{len(ranked) - k} more (--full)" if k < len(ranked) else "")
@@ -67,10 +88,37 @@ def _node_line(table: Table, n: int, full: bool, max_observations: int) -> str:
     return shown(k)
 
 
-def render(table: Table, max_observations: int = 6, full: bool = False) -> str:
+def _percent(p: float) -> str:
+    """A successor probability in few characters; 'never' for one the model never takes."""
+    if p <= 0:
+        return "never"
+    return f"{100 * p:.0f} %" if p >= 0.1 else f"{100 * p:.2g} %"
+
+
+def closed_loop(table: Table):
+    """The closed loop's view of the table (node_risk.NodeRisk) when the model it names can be
+    rebuilt, else None (a hand-made table: the view falls back to observation counts)."""
+    from .controller import Controller
+    from .models import rebuild
+    from .node_risk import analyse
+    from .params import ConfigError
+    from .pipeline import time_step_of
+
+    import numpy as np
+
+    try:
+        model = rebuild(dict(table.header))
+    except (ConfigError, ValueError, KeyError):
+        return None
+    ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
+    return analyse(model, ctrl, time_step_of(model))
+
+
+def render(table: Table, max_observations: int = 6, full: bool = False, loop=None) -> str:
     """The table for a person: header, then a line per node. By default each line fits in
-    WIDTH characters (the successors with their observation counts where every transition
-    would not fit); `full` lists every transition."""
+    WIDTH characters: with the closed loop's view (`loop`, closed_loop()) the next nodes
+    likeliest first, else the transitions or their observation counts; `full` lists every
+    transition."""
     h = table.header
     lines = [
         f"railguard table  format {h.get('format_version')}  model {table.model}",
@@ -83,14 +131,32 @@ def render(table: Table, max_observations: int = 6, full: bool = False) -> str:
             lines.append(f"{label:<16} {h[key]:.4f}")
     if "relaxation" in h and "upper_bound" in h:
         lines[-1] += f"   ({describe_upper(h['relaxation']['model_upper_bound'], h['relaxation'])})"
+    lines.append(f"{'risk':<16} {risk_range(table)}")
+    info = h.get("risk", {})
+    if "hazard" in info:
+        lines += _wrap("", [f"hazard: {' / '.join(_hazard_names(info['hazard']))}", f"weighting: {info.get('weighting')}",
+                            f"supervision: {info.get('supervised')}"])
     if "params" in h:
         items = [f"{k}={v}" for k, v in h["params"].items()]
         lines += _wrap("parameters", items) if not full else ["parameters       " + ", ".join(items)]
     lines.append("")
-    lines.append("node  action              next node on observation" + (
-        "" if full else " (a long line: next node <- how many observations, most first)"))
-    lines += [_node_line(table, n, full, max_observations) for n in range(table.nodes)]
+    if full or loop is None:
+        lines.append("node  action              risk ppm  next node on observation" + (
+            "" if full else " (a long line: next node <- how many observations, most first)"))
+    else:
+        lines.append("node  action              risk ppm  next node and its probability, likeliest first "
+                     "(the model's closed loop; --full: every transition)")
+    succ = None if loop is None else loop.successors
+    lines += [_node_line(table, n, full, max_observations, succ) for n in range(table.nodes)]
     return "\n".join(lines) + "\n"
+
+
+def _hazard_names(states: list[str]) -> list[str]:
+    """Hazard states in a few words: Model 2's 36 critical states as their common prefix."""
+    if len(states) <= 3:
+        return states
+    prefix = states[0].split("-")[0]
+    return [f"{prefix}* ({len(states)} states)"] if all(s.startswith(prefix) for s in states) else states[:3] + ["..."]
 
 
 def as_json(table: Table) -> dict:
@@ -99,4 +165,5 @@ def as_json(table: Table) -> dict:
         "header": dict(table.header),
         "action": [table.actions[a] for a in table.action],
         "next": [list(row) for row in table.next],
+        "risk_ppm": list(table.risk),
     }

@@ -1,4 +1,5 @@
-"""`railguard table show`: a table's header and its controller, node by node."""
+"""`railguard table show`: a table's header and its controller, node by node;
+`railguard table upgrade`: an older table file given the risk column format 2 requires."""
 from __future__ import annotations
 
 import argparse
@@ -21,7 +22,40 @@ def show(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(table_view.as_json(table)))
     else:
-        sys.stdout.write(table_view.render(table, full=args.full))
+        loop = None if args.full else table_view.closed_loop(table)
+        sys.stdout.write(table_view.render(table, full=args.full, loop=loop))
+    return 0
+
+
+def upgrade(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas, with_risk, write_alphas_arrays
+    from monitor.offline.table_view import risk_range
+
+    from monitor.core.table import TableError, decode
+
+    src = Path(args.file)
+    try:
+        new_bytes, old = with_risk(src.read_bytes())
+    except OSError as exc:
+        raise TableError(f"{src}: cannot read: {exc.strerror or exc}") from None
+    except (TableError, ValueError) as exc:
+        raise TableError(f"{src}: {exc}") from None
+    new = decode(new_bytes)
+    out = Path(args.out) if args.out else src
+    out.write_bytes(new_bytes)
+    print(f"{out}: format {old.header.get('format_version')} -> {new.header['format_version']}, {new.nodes} nodes, "
+          f"risk column {risk_range(new)}; SHA-256 {old.sha256[:12]} -> {new.sha256[:12]}")
+
+    def alphas_of(path: Path) -> Path:
+        stem = path.name[:-len(TABLE_SUFFIX)] if path.name.endswith(TABLE_SUFFIX) else path.stem
+        return path.with_name(stem + ALPHAS_SUFFIX)
+
+    if alphas_of(src).is_file():
+        alphas, actions = read_alphas(alphas_of(src), old.sha256)
+        write_alphas_arrays(alphas_of(out), alphas, actions, new.sha256)
+        print(f"{alphas_of(out)}: alpha vectors tied to the upgraded table")
     return 0
 
 
@@ -33,13 +67,25 @@ def register(sub) -> None:
         "show",
         help="print a table's header and its controller node by node",
         description="Check a table (magic, version, SHA-256, dimensions) and print its header and, "
-                    "for every node, the action and where each observation leads. Each line fits in 160 "
-                    "characters: where a node's transitions would not fit (m2's 144 observations), its line "
-                    "names the next nodes with how many observations lead to each, most first; --full lists "
-                    "every transition, --json gives everything.",
+                    "for every node its action, its risk (P(hazard within 30 s | the monitor is in the node), "
+                    "ppm, from the table's risk column) and its next nodes, likeliest first with their "
+                    "probabilities on the closed loop of the model the table names (a few seconds for m2). "
+                    "Each line fits in 160 characters; --full lists every transition (observation -> next "
+                    "node) instead, --json gives everything.",
     )
     s.add_argument("file", nargs="?", default=DEFAULT, metavar="m1|m2|FILE",
                    help="a shipped table or a .table.rgt file (default: %(default)s)")
     s.add_argument("--full", action="store_true", help="every transition of every node, however long the line")
     s.add_argument("--json", action="store_true", help="print the header and the controller as JSON")
     s.set_defaults(func=show)
+    u = tsub.add_parser(
+        "upgrade",
+        help="give an older table file the risk column (format 2)",
+        description="Re-encode a table file in the current format: its controller unchanged, each node's "
+                    "risk (P(hazard within 30 s | node), ppm) recomputed from the exact closed loop of the model "
+                    "its header names, which must rebuild to the header's model_sha256. The SHA-256 changes; "
+                    "the alpha vectors beside the file (NAME.alphas.npz) are tied to the new digest.",
+    )
+    u.add_argument("file", metavar="FILE", help="a .table.rgt file (format 1 or 2)")
+    u.add_argument("--out", metavar="PATH", help="write here instead of over FILE")
+    u.set_defaults(func=upgrade)

@@ -198,6 +198,13 @@ static uint32_t next_node(const rg_table *t, uint32_t node, uint32_t obs)
     return value;
 }
 
+static uint32_t node_risk(const rg_table *t, uint32_t node)
+{
+    uint32_t at = t->risk_offset + 4u * node;
+    return (uint32_t)t->bytes[at] | ((uint32_t)t->bytes[at + 1] << 8)
+        | ((uint32_t)t->bytes[at + 2] << 16) | ((uint32_t)t->bytes[at + 3] << 24);
+}
+
 int rg_table_check(const rg_table *t, const rg_config *cfg, char *msg, size_t len)
 {
     static const uint8_t magic[8] = {'R', 'G', 'T', 'A', 'B', 'L', 'E', '\n'};
@@ -209,8 +216,8 @@ int rg_table_check(const rg_table *t, const rg_config *cfg, char *msg, size_t le
         if (t->bytes[i] != magic[i])
             return table_refuse(msg, len, "not a railguard table (bad magic bytes)");
     }
-    if ((t->bytes[8] | (t->bytes[9] << 8)) != 1)
-        return table_refuse(msg, len, "table format version is not 1");
+    if ((t->bytes[8] | (t->bytes[9] << 8)) != 2)
+        return table_refuse(msg, len, "table format version is not 2 (format 1 has no risk column: railguard table upgrade FILE)");
     rg_sha256(t->bytes, t->length - 32, digest);
     for (i = 0; i < 32; i++) {
         if (digest[i] != t->bytes[t->length - 32 + i])
@@ -223,7 +230,8 @@ int rg_table_check(const rg_table *t, const rg_config *cfg, char *msg, size_t le
     if (t->nodes < 1 || t->nodes > 65536 || (t->index_bytes != 1 && t->index_bytes != 2) || t->start >= t->nodes)
         return table_refuse(msg, len, "bad dimensions");
     body_end = t->next_offset + t->nodes * t->observations * t->index_bytes;
-    if (t->action_offset + t->nodes != t->next_offset || body_end != t->length - 32)
+    if (t->action_offset + t->nodes != t->next_offset || body_end != t->risk_offset
+        || t->risk_offset + 4u * t->nodes != t->length - 32)
         return table_refuse(msg, len, "body does not fit the dimensions");
     for (node = 0; node < t->nodes; node++) {
         if (t->bytes[t->action_offset + node] > RG_EMERGENCY)
@@ -232,6 +240,8 @@ int rg_table_check(const rg_table *t, const rg_config *cfg, char *msg, size_t le
             if (next_node(t, node, obs) >= t->nodes)
                 return table_refuse(msg, len, "a next-node index is >= the number of nodes");
         }
+        if (node_risk(t, node) > RG_PPM)
+            return table_refuse(msg, len, "a node's risk is above 1000000 ppm");
     }
     if (t->period_ms != cfg->period_ms)
         return table_refuse(msg, len, "table was solved for a different time step than period_ms");

@@ -80,6 +80,7 @@
 #define RG_MODEL_M2 2
 #define RG_M1_OBSERVATIONS 4
 #define RG_M2_OBSERVATIONS 144
+#define RG_PPM 1000000u            /* the risk column's unit: parts per million */
 
 typedef struct {
     int32_t heard;        /* 0: never heard from (Python: None) */
@@ -145,6 +146,7 @@ typedef struct {
     uint32_t length;
     uint32_t action_offset;
     uint32_t next_offset;
+    uint32_t risk_offset; /* u32 per node: P(hazard within the horizon | node), ppm */
     uint32_t nodes;
     uint32_t observations;
     uint32_t index_bytes;

@@ -86,6 +86,7 @@ void model_set_start_values(ModelData *m)
     m->table.length = RG_TABLE_LENGTH;
     m->table.action_offset = RG_TABLE_ACTION_OFFSET;
     m->table.next_offset = RG_TABLE_NEXT_OFFSET;
+    m->table.risk_offset = RG_TABLE_RISK_OFFSET;
     m->table.nodes = RG_TABLE_NODES;
     m->table.observations = RG_TABLE_OBSERVATIONS;
     m->table.index_bytes = RG_TABLE_INDEX_BYTES;

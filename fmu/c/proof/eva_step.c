@@ -62,6 +62,7 @@ static void shipped_table(rg_table *t)
     t->length = RG_TABLE_LENGTH;
     t->action_offset = RG_TABLE_ACTION_OFFSET;
     t->next_offset = RG_TABLE_NEXT_OFFSET;
+    t->risk_offset = RG_TABLE_RISK_OFFSET;
     t->nodes = RG_TABLE_NODES;
     t->observations = RG_TABLE_OBSERVATIONS;
     t->index_bytes = RG_TABLE_INDEX_BYTES;

@@ -23,6 +23,7 @@ int main(void)
     table.length = RG_TABLE_LENGTH;
     table.action_offset = RG_TABLE_ACTION_OFFSET;
     table.next_offset = RG_TABLE_NEXT_OFFSET;
+    table.risk_offset = RG_TABLE_RISK_OFFSET;
     table.nodes = RG_TABLE_NODES;
     table.observations = RG_TABLE_OBSERVATIONS;
     table.index_bytes = RG_TABLE_INDEX_BYTES;
