@@ -28,7 +28,8 @@ OBSTACLE_IDS = tuple(range(0x20, 0x26))     # channel i of module i // 2
 TRAIN_STATE_ID = 0x30
 MONITOR_STATUS_ID = 0x40
 MONITOR_TRACK_ID = 0x41                     # the remembered obstacle, right after MonitorStatus
-OUTPUT_IDS = (BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID)   # what the monitor sends, in order
+MONITOR_RISK_ID = 0x42                      # the papers' risk and the table's, right after MonitorTrack
+OUTPUT_IDS = (BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, MONITOR_RISK_ID)   # what the monitor sends, in order
 FRAME_LENGTH = 8
 INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor reads (rate-checked)
 
@@ -103,6 +104,7 @@ class Receiver:
     demand: Optional[dict] = None          # newest BrakeDemand (for the player and replay)
     status: Optional[dict] = None          # newest MonitorStatus
     track: Optional[dict] = None           # newest MonitorTrack
+    risk: Optional[dict] = None            # newest MonitorRisk
     accepted: int = 0
     rejected: Tally = field(default_factory=Tally)
     senders: dict = field(default_factory=dict)
@@ -198,6 +200,8 @@ class Receiver:
             self.status = dict(raw, tick=tick)
         elif frame_id == MONITOR_TRACK_ID:
             self.track = dict(raw, tick=tick)
+        elif frame_id == MONITOR_RISK_ID:
+            self.risk = dict(raw, tick=tick)
         return msg.name
 
 

@@ -31,7 +31,7 @@ from typing import Iterable, Iterator, Optional
 from monitor.core import cycle as core
 
 from .logfile import LogError, LogFrame, read
-from .runner import CycleRecord, MonitorCore, TrackTally
+from .runner import CycleRecord, MonitorCore, RiskTally, TrackTally
 
 ReplayError = LogError     # the CLI's name for a log that cannot be replayed
 Decision = CycleRecord     # a replayed cycle is recorded exactly like a live one
@@ -66,9 +66,11 @@ class ReplayStats:
     recorded_demands: int = 0
     agreeing: int = 0
     track: TrackTally = field(init=False)      # the remembered obstacle, cycle by cycle
+    risk: RiskTally = field(init=False)        # the papers' risk and the table's, cycle by cycle
 
     def __post_init__(self) -> None:
         self.track = TrackTally(self.period_ms)
+        self.risk = RiskTally(self.period_ms)
 
     def absorb(self, mon: MonitorCore) -> None:
         """Add a finished segment's counters."""
@@ -94,6 +96,7 @@ class ReplayStats:
                                    for ln, k, j, a in self.anomalies],
             "recorded_demands": self.recorded_demands,
             "track": self.track.as_dict(),
+            "risk": self.risk.as_dict(),
         }
         if self.recorded_demands:
             out["agreement_with_recorded"] = self.agreeing / self.recorded_demands
@@ -174,6 +177,7 @@ class Replay:
             _, rec = mon.decide(tick)
             self.stats.cycles += 1
             self.stats.track.add(rec)
+            self.stats.risk.add(rec)
             self._decided(tick, rec.demand)
             yield rec
 

@@ -24,6 +24,7 @@ import can
 from cantools.autosar.end_to_end import check_profile2_crc
 
 from monitor.core import cycle as core
+from monitor.core.risk import CRITICAL, MAX_SCORE, PPM
 from monitor.core.types import (
     EMERGENCY, NO_DISTANCE, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD,
     TRACK_NONE, TRACK_PASSED, Inputs, Outputs,
@@ -31,7 +32,7 @@ from monitor.core.types import (
 
 from . import frames
 from .codec import (
-    BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_STATUS_ID, MONITOR_TRACK_ID, Receiver, Sender, data_id, database,
+    BRAKE_DEMAND_ID, FRAME_LENGTH, MONITOR_RISK_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, Receiver, Sender, data_id, database,
 )
 
 FOREIGN_HOLD_CYCLES = 10   # ForeignOutput stays set this many cycles after the last foreign frame
@@ -67,6 +68,11 @@ class CycleRecord:
     track_dm: int = NO_DISTANCE      # the remembered obstacle's predicted distance (NO_DISTANCE: none)
     track_cycles: int = 0            # cycles since it was last voted
     track_state: int = TRACK_NONE    # monitor.core.types.TRACK_NAMES
+    r1_ppm: int = 0                  # the papers' risk and the table's (monitor.core.risk, MonitorRisk)
+    r2_ppm: int = 0
+    risk_score: int = 0
+    risk_category: int = 1
+    table_risk_ppm: int = 0
 
 
 def held_unseen(rec) -> bool:
@@ -107,11 +113,57 @@ class TrackTally:
                 "forgotten": self.forgotten, "passed": self.passed, "memory_cycles": self.memory_cycles}
 
 
+CATEGORY_NAMES = ("low", "moderate", "high", "critical")     # seed 001's categories 1..4
+
+
+@dataclass
+class RiskTally:
+    """The risk over a run, one cycle at a time (constant memory, live and replayed alike):
+    the peaks of R1, R2 and the table's risk, and the time spent in each seed 001 category."""
+
+    period_ms: int
+    peak_r1: int = 0
+    peak_r2: int = 0
+    peak_table: int = 0
+    cycles: list = field(default_factory=lambda: [0, 0, 0, 0])
+
+    def add(self, rec) -> None:
+        self.peak_r1 = max(self.peak_r1, rec.r1_ppm)
+        self.peak_r2 = max(self.peak_r2, rec.r2_ppm)
+        self.peak_table = max(self.peak_table, rec.table_risk_ppm)
+        self.cycles[min(max(rec.risk_category, 1), 4) - 1] += 1
+
+    def as_dict(self) -> dict:
+        return {"peak_r1_pct": round(self.peak_r1 / 1e4, 2), "peak_r2_pct": round(self.peak_r2 / 1e4, 2),
+                "peak_table_ppm": self.peak_table,
+                **{f"{name}_s": n * self.period_ms / 1000 for name, n in zip(CATEGORY_NAMES, self.cycles)}}
+
+
+def risk_summary(records: list, period_ms: int) -> dict:
+    tally = RiskTally(period_ms)
+    for rec in records:
+        tally.add(rec)
+    return tally.as_dict()
+
+
 def track_columns(recs) -> dict:
     """monitor.plot.plot_run's track columns from cycle records (live or replayed): the
     remembered obstacle's predicted distance in m (None: no track) and its state."""
     return {"track_m": [None if r.track_dm == NO_DISTANCE else r.track_dm / 10 for r in recs],
             "track_state": [r.track_state for r in recs]}
+
+
+def per_mille_up(ppm: int) -> int:
+    """MonitorRisk.R1 / R2 raw (0.1 %) from ppm, rounded up: a risk is never shown lower."""
+    return (ppm + 999) // 1000
+
+
+def risk_columns(recs) -> dict:
+    """monitor.plot.plot_run's risk columns from cycle records (live or replayed), as probabilities."""
+    return {"risk": {"R1 (seed 000 eq. 16)": [r.r1_ppm / 1e6 for r in recs],
+                     "R2 (seed 000 eq. 17)": [r.r2_ppm / 1e6 for r in recs],
+                     "table: P(hazard in 30 s | node)": [r.table_risk_ppm / 1e6 for r in recs],
+                     "category": [r.risk_category for r in recs]}}
 
 
 def track_age(cycles: int, period_ms: int) -> int:
@@ -208,7 +260,8 @@ class MonitorCore:
         self.outputs = out
         rec = CycleRecord(tick, out.demand, out.reasons, out.mode, out.node, out.distance_dm,
                           out.module_flags, out.system_error, None if train is None else train.speed_cms,
-                          out.warning, tick <= self.foreign_until, out.track_dm, out.track_cycles, out.track_state)
+                          out.warning, tick <= self.foreign_until, out.track_dm, out.track_cycles, out.track_state,
+                          out.r1_ppm, out.r2_ppm, out.risk_score, out.risk_category, out.table_risk_ppm)
         return out, rec
 
 
@@ -318,6 +371,9 @@ class MonitorRunner:
             (MONITOR_TRACK_ID, {"TrackState": out.track_state, "Memory": int(bool(out.reasons & R_MEMORY)),
                                 "TrackDistance": min(out.track_dm, NO_DISTANCE_RAW),
                                 "TrackAge": track_age(out.track_cycles, self.period)}),
+            (MONITOR_RISK_ID, {"RiskCategory": out.risk_category, "RiskScore": out.risk_score,
+                               "R1": per_mille_up(out.r1_ppm), "R2": per_mille_up(out.r2_ppm),
+                               "TableRisk": out.table_risk_ppm}),
         )
         for frame_id, signals in messages:
             data = self.sender.frame(frame_id, signals)
@@ -345,10 +401,12 @@ class MonitorRunner:
 
     def send_final_emergency(self) -> None:
         """On shutdown: one last emergency demand, so that silence is never read as 'no brake'
-        (the monitor stops supervising: its MonitorTrack says no track)."""
+        (the monitor stops supervising: its MonitorTrack says no track, its MonitorRisk the
+        worst, as the core's safe stop does: nothing is known any more)."""
         last = self.records[-1] if self.records else None
         out = Outputs(EMERGENCY, R_SAFE_STOP, NO_DISTANCE, 0 if last is None else last.node, 3, 0, True, 0,
-                      len(self.records) + 1, 0)
+                      len(self.records) + 1, 0, r1_ppm=PPM // 2, r2_ppm=PPM, risk_score=MAX_SCORE,
+                      risk_category=CRITICAL, table_risk_ppm=PPM)
         self.send(out)
 
     # ------------------------------------------------------------------ loop

@@ -26,7 +26,7 @@ from . import frames
 from .clock import SimClock, WallClock
 from .logfile import CandumpWriter
 from .player import Player
-from .runner import MonitorRunner, TrackTally, held_unseen, track_columns
+from .runner import MonitorRunner, TrackTally, held_unseen, risk_columns, risk_summary, track_columns
 from .scenario import Scenario
 
 VIRTUAL_CHANNEL = "railguard"
@@ -154,6 +154,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
                                              None),
         "faults_detected": detected_faults(runner),
         "track": track_summary(runner.records, runner.period),
+        "risk": risk_summary(runner.records, runner.period),
         "frames_received": runner.frames_received,
         "frames_rejected": runner.receiver.rejected_total,
         "rejects": {k: v for k, v in sorted(runner.receiver.rejected.items()) if v},
@@ -192,7 +193,7 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
         speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
         true_d = None
     return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs],
-                    speed_distance=speed_distance(runner, player), **track_columns(recs))
+                    speed_distance=speed_distance(runner, player), **track_columns(recs), **risk_columns(recs))
 
 
 def speed_distance(runner: MonitorRunner, player: Optional[Player]):

@@ -104,7 +104,8 @@ TRAIN_TRACE_REAL = ["true_speed", "train.speed", "position", "acceleration", "tr
 TRAIN_TRACE_INT = ["brake_level"]
 _OUTPUT_NAMES = [v.name for v in MONITOR_OUTPUTS]
 MONITOR_TRACE = ["brake_demand", "reasons", "voted_distance_dm", "node", "mode", "module_flags", "observation", "cycle",
-                 "error_cycles", "warning"]      # the Integer outputs, then the one Boolean
+                 "error_cycles", "r1_ppm", "r2_ppm", "risk_score", "risk_category", "table_risk_ppm",
+                 "warning"]      # the Integer outputs, then the one Boolean
 
 
 class FmuMonitor:
@@ -366,4 +367,26 @@ def plot(result: CosimResult, path: Path, title: str) -> Path:
     voted = [None if r[c["voted_distance_dm"]] == 65535 else r[c["voted_distance_dm"]] / 10 for r in result.rows]
     return plot_run(path, title, t, [r[c["true_speed"]] for r in result.rows], dist, voted,
                     [r[c["brake_demand"]] for r in result.rows], [r[c["mode"]] for r in result.rows],
-                    speed_distance=speed_distance(result))
+                    speed_distance=speed_distance(result), risk=risk_of(result))
+
+
+def risk_summary(result: CosimResult) -> dict:
+    """The run's risk as `railguard run` and `replay` summarise it (can_bus.runner.RiskTally):
+    peaks, and the time spent in each seed 001 category (rows are communication steps)."""
+    c = {name: i for i, name in enumerate(result.columns)}
+    rows = result.rows
+    step = result.simulated_s / len(rows) if rows else 0.0
+    peak = {key: max((int(r[c[key]]) for r in rows), default=0) for key in ("r1_ppm", "r2_ppm", "table_risk_ppm")}
+    counts = [sum(1 for r in rows if int(r[c["risk_category"]]) == k) for k in range(1, 5)]
+    return {"peak_r1_pct": round(peak["r1_ppm"] / 1e4, 2), "peak_r2_pct": round(peak["r2_ppm"] / 1e4, 2),
+            "peak_table_ppm": peak["table_risk_ppm"],
+            **{f"{name}_s": round(n * step, 3) for name, n in zip(("low", "moderate", "high", "critical"), counts)}}
+
+
+def risk_of(result: CosimResult) -> dict:
+    """monitor.plot.draw_risk's columns from the monitor FMU's risk outputs."""
+    c = {name: i for i, name in enumerate(result.columns)}
+    ppm = {"R1 (seed 000 eq. 16)": "r1_ppm", "R2 (seed 000 eq. 17)": "r2_ppm", "table: P(hazard in 30 s | node)": "table_risk_ppm"}
+    out = {label: [r[c[name]] / 1e6 for r in result.rows] for label, name in ppm.items()}
+    out["category"] = [int(r[c["risk_category"]]) for r in result.rows]
+    return out

@@ -144,6 +144,19 @@ def _monitor() -> list[Var]:
         Var("table.sha256", "String", "output", "constant", "", None,
             "SHA-256 stored in the table file's trailer, over the file before it (as railguard table show prints it)"),
         Var("table.nodes", "Integer", "output", "constant", 0, None, "number of controller nodes"),
+        # the papers' risk, live (monitor/core/risk.py, docs/core.md): appended, so that the
+        # value references above keep their numbers
+        Var("r1_ppm", "Integer", "output", "discrete", None, None,
+            "seed 000 eq. 16 at the nearest obstacle (voted or remembered), ppm: 500000 at the obstacle, "
+            "0 without one; alpha1 = the service brake's EBI"),
+        Var("r2_ppm", "Integer", "output", "discrete", None, None,
+            "seed 000 eq. 17, ppm: (alpha1 - d) / (alpha1 - alpha2) clipped to [0, 10^6]; alpha2 = EBI"),
+        Var("risk_score", "Integer", "output", "discrete", None, None,
+            "seed 001 eq. 11: rho = 3 distance + 2 speed + 2 obstacle + track + 2 brake (levels from 0), 0..20"),
+        Var("risk_category", "Integer", "output", "discrete", None, None,
+            "seed 001's category of rho: 1 low (<= 7), 2 moderate (8-11), 3 high (12-15), 4 critical (>= 16)"),
+        Var("table_risk_ppm", "Integer", "output", "discrete", None, None,
+            "the table's risk column at the current node: P(hazard within 30 s | node), ppm"),
     ]
     return v
 

@@ -146,22 +146,53 @@ def draw_track(ax, t_s, track_m, track_state, label: bool = True) -> None:
             ax.plot([t_s[i] for i in at], ys, marker, color=TRACK_COLOR, ms=7, label=text if label else None)
 
 
+CATEGORY_COLORS = {2: "gold", 3: "tab:orange", 4: "tab:red"}     # seed 001's moderate, high, critical
+CATEGORY_NAMES = {1: "low", 2: "moderate", 3: "high", 4: "critical"}
+
+
+def draw_risk(ax, t_s, risk: dict) -> None:
+    """The risk panel, drawn like seed 000's Fig. 7c: each estimator as a probability over
+    time; the seed 001 category shades the background (none while low)."""
+    series = {k: v for k, v in risk.items() if k != "category"}
+    for (label, values), color in zip(series.items(), ("tab:purple", "tab:brown", "black")):
+        ax.step(t_s, values, where="post", color=color, lw=1.2, label=label)
+    category = risk.get("category")
+    if category:
+        shown = set()
+        start = 0
+        for i in range(1, len(category) + 1):
+            if i == len(category) or category[i] != category[start]:
+                c = category[start]
+                if c in CATEGORY_COLORS:
+                    end = t_s[i] if i < len(t_s) else t_s[-1]
+                    ax.axvspan(t_s[start], end, color=CATEGORY_COLORS[c], alpha=0.15, lw=0,
+                               label=None if c in shown else f"rho {CATEGORY_NAMES[c]}")
+                    shown.add(c)
+                start = i
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_ylabel("risk")
+    ax.legend(loc="upper left", fontsize=7, ncol=2)
+
+
 def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, demand, mode,
-             speed_distance: SpeedDistance | None = None, track_m=None, track_state=None) -> Path:
+             speed_distance: SpeedDistance | None = None, track_m=None, track_state=None, risk: dict | None = None) -> Path:
     """`track_m` is the remembered obstacle's predicted distance per cycle (None: no track),
-    `track_state` its state (monitor.core.types.TRACK_NAMES); both optional."""
+    `track_state` its state (monitor.core.types.TRACK_NAMES); both optional. `risk` (optional):
+    label -> probability per cycle, and "category" -> seed 001's category per cycle (draw_risk)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = 4 if risk is None else 5
     if speed_distance is None:
-        fig, axes = plt.subplots(4, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+        fig, axes = plt.subplots(rows, 1, figsize=(10, 2 * rows), sharex=True, constrained_layout=True)
+        axes = list(axes)
     else:
-        fig = plt.figure(figsize=(17, 8.5), constrained_layout=True)
-        grid = fig.add_gridspec(4, 2, width_ratios=(1.0, 1.15))
+        fig = plt.figure(figsize=(17, 2.1 * rows + 0.1), constrained_layout=True)
+        grid = fig.add_gridspec(rows, 2, width_ratios=(1.0, 1.15))
         axes = [fig.add_subplot(grid[0, 0])]
-        axes += [fig.add_subplot(grid[i, 0], sharex=axes[0]) for i in range(1, 4)]
+        axes += [fig.add_subplot(grid[i, 0], sharex=axes[0]) for i in range(1, rows)]
         draw_speed_distance(fig.add_subplot(grid[:, 1]), speed_distance)
     axes[0].plot(t_s, speed_mps, color="tab:blue")
     axes[0].set_ylabel("speed (m/s)")
@@ -178,8 +209,10 @@ def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, 
     axes[3].step(t_s, mode, where="post", color="tab:green")
     axes[3].set_yticks(range(4), MODE_NAMES)
     axes[3].set_ylabel("mode")
-    axes[3].set_xlabel("time (s)")
-    for ax in axes[:3]:
+    if risk is not None:
+        draw_risk(axes[4], t_s, risk)
+    axes[-1].set_xlabel("time (s)")
+    for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     fig.suptitle(title)
     out = Path(path)

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from can_bus import codec
 from can_bus.codec import (
-    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
+    BRAKE_DEMAND_ID, MONITOR_RISK_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
     Sender, encode, report_signals,
 )
 from monitor.core import cycle as core
@@ -36,6 +36,7 @@ MESSAGE_NAMES = {
     0x24: "ObstacleReport_M3C1", 0x25: "ObstacleReport_M3C2",
     0x30: "TrainState",
     0x40: "MonitorStatus",
+    0x42: "MonitorRisk",
     0x41: "MonitorTrack",
 }
 KNOWN_IDS = tuple(MESSAGE_NAMES)
@@ -79,6 +80,9 @@ def ref_in_range(frame_id: int, data: bytes) -> bool:
         return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 16383
     if frame_id == MONITOR_TRACK_ID:
         return field(data, 12, 3) <= 5        # TrackState; Memory, TrackDistance and TrackAge span their bits
+    if frame_id == MONITOR_RISK_ID:           # category 1..4, score 0..20, R1 <= 50 %, R2 <= 100 %, <= 10^6 ppm
+        return (1 <= field(data, 12, 3) <= 4 and field(data, 16, 5) <= 20 and field(data, 21, 10) <= 500
+                and field(data, 31, 11) <= 1000 and field(data, 42, 20) <= 1_000_000)
     return True    # MonitorStatus: every signal spans its full bit width
 
 
@@ -150,8 +154,9 @@ def test_dbc_ids_are_ordered_by_safety_priority_and_e2e_layout():
     assert all(v > ids["BrakeDemand"] for k, v in ids.items() if k != "BrakeDemand")
     assert (codec.BRAKE_DEMAND_ID, codec.TRAIN_STATE_ID, codec.MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID) == (
         ids["BrakeDemand"], ids["TrainState"], ids["MonitorStatus"], ids["MonitorTrack"])
-    # the monitor's outputs in the order it sends them; the track right after the status
-    assert codec.OUTPUT_IDS == (ids["BrakeDemand"], ids["MonitorStatus"], ids["MonitorTrack"])
+    # the monitor's outputs in the order it sends them; the track right after the status, then the risk
+    assert codec.OUTPUT_IDS == (ids["BrakeDemand"], ids["MonitorStatus"], ids["MonitorTrack"], ids["MonitorRisk"])
+    assert codec.MONITOR_RISK_ID == ids["MonitorRisk"]
     assert codec.OBSTACLE_IDS == tuple(ids[f"ObstacleReport_M{m}C{c}"] for m in (1, 2, 3) for c in (1, 2))
     # data IDs (low byte of the frame ID) are distinct, so a frame cannot pass as another
     assert len({codec.data_id(i) for i in ids.values()}) == len(ids)
@@ -348,7 +353,7 @@ def test_wrong_length_is_rejected(length):
     assert_dropped(rx, "wrong_length")
 
 
-@pytest.mark.parametrize("frame_id", [0x0, 0x11, 0x1F, 0x26, 0x31, 0x42, 0x7FF, 0x120])
+@pytest.mark.parametrize("frame_id", [0x0, 0x11, 0x1F, 0x26, 0x31, 0x43, 0x7FF, 0x120])
 def test_unknown_id_is_rejected(frame_id):
     sender, rx = primed()
     data = encode(0x20, report_signals(GOOD, 0), 1)
@@ -436,6 +441,10 @@ def _signal_strategy(frame_id: int):
     if frame_id == MONITOR_TRACK_ID:
         return st.fixed_dictionaries({"TrackState": val(0, 5, 0, 7), "Memory": st.integers(0, 1),
                                       "TrackDistance": st.integers(0, 65535), "TrackAge": st.integers(0, 65535)})
+    if frame_id == MONITOR_RISK_ID:
+        return st.fixed_dictionaries({"RiskCategory": val(1, 4, 0, 7), "RiskScore": val(0, 20, 0, 31),
+                                      "R1": val(0, 500, 0, 1023), "R2": val(0, 1000, 0, 2047),
+                                      "TableRisk": val(0, 1_000_000, 0, 2**20 - 1)})
     return st.fixed_dictionaries({"Mode": st.integers(0, 3), "Node": st.integers(0, 1023),
                                   "ErrorFlags": st.integers(0, 63), "VotedDistance": st.integers(0, 65535),
                                   "TableHash": st.integers(0, 4095), "DeadlineMisses": st.integers(0, 15)})

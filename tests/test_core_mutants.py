@@ -439,7 +439,8 @@ def test_anything_unforeseen_inside_a_cycle_gives_exactly_the_safe_stop_outputs(
         inputs = None
     state, out = step(core.setup, before, inputs, core.tick)
     assert out == Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, before.node, SAFE_STOP, 0,
-                          True, 0, before.cycle + 1, before.error_cycles + 1, True)
+                          True, 0, before.cycle + 1, before.error_cycles + 1, True,
+                          r1_ppm=500_000, r2_ppm=1_000_000, risk_score=20, risk_category=4, table_risk_ppm=1_000_000)
     assert state == before._replace(mode=SAFE_STOP, held=EMERGENCY, healthy=0, cycle=before.cycle + 1,
                                     error_cycles=before.error_cycles + 1, calm=0)
 

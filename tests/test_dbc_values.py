@@ -106,6 +106,7 @@ def expected_tables(db) -> dict:
         ("MonitorTrack", "TrackState"): track_state_names(),
         ("MonitorTrack", "Memory"): {0: "none", 1: T.REASON_NAMES[T.R_MEMORY.bit_length() - 1]},
         ("MonitorTrack", "TrackDistance"): {T.NO_DISTANCE: "no_track"},
+        ("MonitorRisk", "RiskCategory"): category_names(),
     }
     for ch, msg in enumerate(obstacle_messages(db)):
         exp[(msg.name, "Status")] = status
@@ -118,13 +119,31 @@ def expected_tables(db) -> dict:
     return exp
 
 
+def category_names() -> dict:
+    """RiskCategory as the runner sends the core's categories (monitor.core.risk) and the
+    offline estimators name them (seed 001: low, moderate, high, critical)."""
+    from monitor.core import risk
+    from monitor.offline.risk import RISK_NAMES
+
+    bus, runner = capturing_runner()
+    out = {}
+    for score in range(risk.MAX_SCORE + 1):
+        category = risk.risk_category(score)
+        runner.send(T.Outputs(**BASE_OUTPUTS, risk_score=score, risk_category=category))
+        rx = codec.Receiver()
+        assert rx.accept(codec.MONITOR_RISK_ID, bus.sent[-1].data, 0) == "MonitorRisk"
+        assert rx.risk["RiskScore"] == score
+        out[rx.risk["RiskCategory"]] = RISK_NAMES[category - 1]
+    return out
+
+
 def track_state_names() -> dict:
     """TrackState as the runner sends it: one frame per core state, decoded by the project's receiver."""
     bus, runner = capturing_runner()
     out = {}
     for state in TRACK_STATES:
         runner.send(T.Outputs(**BASE_OUTPUTS, track_state=state))
-        msg = bus.sent[-1]
+        msg = bus.sent[-2]
         assert msg.arbitration_id == codec.MONITOR_TRACK_ID
         rx = codec.Receiver()
         assert rx.accept(msg.arbitration_id, msg.data, 0) == "MonitorTrack"
@@ -174,7 +193,8 @@ def test_obstacle_distance_has_no_no_distance_code(db):
 def test_every_physical_signal_has_its_unit(db):
     """The DBC's physical units are the core's integer units (DESIGN.md section 4) scaled."""
     units = {"Distance": ("m", 0.1), "ClosingSpeed": ("m/s", 0.01), "Speed": ("m/s", 0.01),
-             "VotedDistance": ("m", 0.1), "TrackDistance": ("m", 0.1), "TrackAge": ("s", 0.1)}
+             "VotedDistance": ("m", 0.1), "TrackDistance": ("m", 0.1), "TrackAge": ("s", 0.1),
+             "R1": ("%", 0.1), "R2": ("%", 0.1), "TableRisk": ("ppm", 1)}
     for msg in db.messages:
         for sig in msg.signals:
             if sig.name in units:
@@ -197,9 +217,11 @@ def held_track_frames(**change) -> list:
 
 def test_the_runner_sends_the_track_right_after_the_status(db):
     sent = held_track_frames()
-    assert [m.arbitration_id for m in sent] == [codec.BRAKE_DEMAND_ID, codec.MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID]
+    assert [m.arbitration_id for m in sent] == [codec.BRAKE_DEMAND_ID, codec.MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID,
+                                                codec.MONITOR_RISK_ID]
     rx = codec.Receiver()
-    assert [rx.accept(m.arbitration_id, m.data, 0) for m in sent] == ["BrakeDemand", "MonitorStatus", "MonitorTrack"]
+    assert [rx.accept(m.arbitration_id, m.data, 0) for m in sent] == ["BrakeDemand", "MonitorStatus", "MonitorTrack",
+                                                                       "MonitorRisk"]
     assert rx.track["TrackState"] == T.TRACK_HELD and rx.track["Memory"] == 1
     assert rx.track["TrackDistance"] == 1234 and rx.track["TrackAge"] == 37         # 37 cycles of 100 ms
     named = db.decode_message(codec.MONITOR_TRACK_ID, bytes(sent[2].data), decode_choices=True)
@@ -233,9 +255,24 @@ def test_the_final_emergency_says_no_track(db):
     bus, runner = capturing_runner()
     runner.send_final_emergency()
     assert [m.arbitration_id for m in bus.sent] == [codec.BRAKE_DEMAND_ID, codec.MONITOR_STATUS_ID,
-                                                    codec.MONITOR_TRACK_ID]
+                                                    codec.MONITOR_TRACK_ID, codec.MONITOR_RISK_ID]
     named = db.decode_message(codec.MONITOR_TRACK_ID, bytes(bus.sent[2].data))
     assert (str(named["TrackState"]), str(named["TrackDistance"])) == ("none", "no_track")
+    risk = db.decode_message(codec.MONITOR_RISK_ID, bytes(bus.sent[3].data))     # nothing known: the worst
+    assert (str(risk["RiskCategory"]), risk["R1"], risk["R2"], risk["TableRisk"]) == ("critical", 50, 100, 1_000_000)
+
+
+def test_cantools_decodes_the_risk_with_its_units(db):
+    """A HIL engineer's view of MonitorRisk: cantools names every signal with its unit and the
+    category with its name; R1 and R2 are the core's ppm rounded up to 0.1 %."""
+    bus, runner = capturing_runner()
+    runner.send(T.Outputs(**(BASE_OUTPUTS | dict(r1_ppm=6_693, r2_ppm=500_001, risk_score=13, risk_category=3,
+                                                 table_risk_ppm=23_141))))
+    msg = db.get_message_by_frame_id(codec.MONITOR_RISK_ID)
+    named = db.decode_message(codec.MONITOR_RISK_ID, bytes(bus.sent[3].data))
+    assert named["R1"] == pytest.approx(0.7) and named["R2"] == pytest.approx(50.1)
+    assert (str(named["RiskCategory"]), named["RiskScore"], named["TableRisk"]) == ("high", 13, 23_141)
+    assert {s.name: s.unit for s in msg.signals if s.unit} == {"R1": "%", "R2": "%", "TableRisk": "ppm"}
 
 
 # ----------------------------------------------------------------------------- as a user decodes

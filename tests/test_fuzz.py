@@ -46,7 +46,7 @@ def test_quick_run_figures():
         assert r["rejected"].get(reason, 0) > 0, reason
     assert "undecodable" not in r["rejected"] and "unknown_id" not in r["rejected"]
     assert "error_or_remote_frame" not in r["rejected"]          # the old shared reason is gone
-    assert r["foreign_cycles"] > 0 and set(r["foreign_ids"]) == {"0x10", "0x40", "0x41"}
+    assert r["foreign_cycles"] > 0 and set(r["foreign_ids"]) == {"0x10", "0x40", "0x41", "0x42"}
     assert r["cycles"] > 0 and r["frames_per_s"] > 0
     # the same seed gives the same frames
     again = fuzz.run(8000, quiet, seed=5, workers=1)
@@ -95,7 +95,8 @@ def test_reference_crc_and_unpacking_agree_with_the_codec():
                0x10: {"Level": 2, "Warning": 1, "Reason": 16383, "Cycle": 2**32 - 1},
                0x40: {"Mode": 3, "ForeignOutput": 1, "Node": 1023, "ErrorFlags": 63, "VotedDistance": 65535,
                       "TableHash": 4095, "DeadlineMisses": 15},
-               0x41: {"TrackState": 5, "Memory": 1, "TrackDistance": 65535, "TrackAge": 65535}}
+               0x41: {"TrackState": 5, "Memory": 1, "TrackDistance": 65535, "TrackAge": 65535},
+               0x42: {"RiskCategory": 4, "RiskScore": 20, "R1": 500, "R2": 1000, "TableRisk": 1_000_000}}
     for _ in range(17):
         for fid, sig in signals.items():
             data = sender.frame(fid, sig)

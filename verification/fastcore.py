@@ -24,7 +24,7 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-from monitor.core import cycle
+from monitor.core import cycle, risk
 from monitor.core.braking import CURVE_CAP_DM, SUPERVISED_PERIODS, ZONE_PERIODS
 from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, gradient_accel_mms2
 from monitor.core.memory import UNITS_PER_DM
@@ -36,7 +36,7 @@ from monitor.core.types import (
 
 I64 = np.int64
 OUTPUT_KEYS = ("demand", "reasons", "distance_dm", "node", "observation", "warning", "track_dm", "track_cycles",
-               "track_state")
+               "track_state", "r1_ppm", "r2_ppm", "risk_score", "risk_category", "table_risk_ppm")
 INPUT_KEYS = ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake", "age_ms")
 
 
@@ -141,6 +141,40 @@ def zone_of(distance_dm, alpha1_dm, alpha2_dm, warning_dm: int) -> np.ndarray:
                                                           np.where(distance_dm <= alpha1_dm + warning_dm, 1, 0)))
 
 
+def r1_ppm(distance_dm, alpha1_dm) -> np.ndarray:
+    """monitor.core.risk.r1_ppm on arrays (seed 000 eq. 16), the same integer steps."""
+    d, a = np.asarray(distance_dm, dtype=I64), np.asarray(alpha1_dm, dtype=I64)
+    safe_a = np.where(a > 0, a, 1)
+    num = 5 * risk.STEPS_PER_UNIT * d
+    k, rem = num // safe_a, num % safe_a
+    k = np.minimum(k, risk.K_LIMIT)
+
+    q, base, bits = np.full(k.shape, risk.ONE, dtype=I64), np.full(k.shape, risk.EXP_STEP, dtype=I64), k.copy()
+    while bits.any():                                   # risk.exp_neg_q30
+        q = np.where(bits & 1, (q * base) >> risk.Q, q)
+        base = (base * base) >> risk.Q
+        bits >>= 1
+
+    def fine(q):
+        return ((risk.PPM << risk.FINE) * q) // (risk.ONE + q)
+
+    here, there = fine(q), fine((q * risk.EXP_STEP) >> risk.Q)
+    r = (here - ((here - there) * rem) // safe_a + (1 << (risk.FINE - 1))) >> risk.FINE
+    r = np.where(k >= risk.K_LIMIT, 0, r)
+    return np.where(a > 0, r, np.where(d == 0, risk.PPM // 2, 0))
+
+
+def r2_ppm(distance_dm, alpha1_dm, alpha2_dm) -> np.ndarray:
+    """monitor.core.risk.r2_ppm on arrays (seed 000 eq. 17, rounded up, clipped)."""
+    d, a1, a2 = (np.asarray(x, dtype=I64) for x in (distance_dm, alpha1_dm, alpha2_dm))
+    span = np.maximum(a1 - a2, 1)
+    return np.where(d <= a2, risk.PPM, np.where(d >= a1, 0, ((a1 - d) * risk.PPM + span - 1) // span))
+
+
+def risk_category(score) -> np.ndarray:
+    return np.select([score <= 7, score <= 11, score <= 15], [risk.LOW, risk.MODERATE, risk.HIGH], risk.CRITICAL)
+
+
 def supervision(present, distance_dm, c: Curves, held) -> tuple[np.ndarray, np.ndarray]:
     """envelope.supervision_demand on arrays: (demand, warning)."""
     emergency = present & ((distance_dm <= c.ebi_dm) | (held & (distance_dm <= c.sbi_dm)))
@@ -221,6 +255,7 @@ class VectorMonitor:
         self.track_absent = np.zeros(n, dtype=I64)
         self.kept = np.zeros(n, dtype=bool)
         self.m2 = setup.model == "m2"
+        self.risk = np.asarray(setup.table.risk, dtype=I64)      # the table's risk column
 
     def _memory(self, present, dist, speed, toward, own) -> tuple:
         """Step 4 of the cycle: the track after this cycle's picture. Every PRESENT picture is
@@ -281,12 +316,13 @@ class VectorMonitor:
         alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, age)
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
-        if self.m2:
-            spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
-            obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
-            obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake
-        else:
-            obs = zone
+        spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
+        obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
+        obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake if self.m2 else zone
+        # the papers' risk at the supervised (nearest) obstacle, monitor/core/risk.py
+        r1 = np.where(sup, r1_ppm(np.where(sup, sup_dist, 0), alpha1), 0)
+        r2 = np.where(sup, r2_ppm(np.where(sup, sup_dist, 0), alpha1, alpha2), 0)
+        score = 3 * zone + 2 * spd + 2 * obst + track + 2 * brake
         action, node = self.policy.step(obs, self.applied)
         table = table_hold(self.table_held, action, speed, zone == 0)     # the voted picture's zone
         self.table_held = table
@@ -302,7 +338,8 @@ class VectorMonitor:
                    | np.where(warn, R_WARNING, 0) | np.where(remembered, R_MEMORY, 0))
         out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
                "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
-               "track_state": t_state, "track_far": far, "table": action, "table_demand": table, "curves": c,
+               "track_state": t_state, "r1_ppm": r1, "r2_ppm": r2, "risk_score": score,
+               "risk_category": risk_category(score), "table_risk_ppm": self.risk[node], "track_far": far, "table": action, "table_demand": table, "curves": c,
                "alpha1_dm": alpha1, "alpha2_dm": alpha2}
         # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
         has = self.near != NO_TRACK

@@ -19,6 +19,7 @@ from .envelope import combine, hold, keep_held, supervision_demand, table_hold, 
 from .freshness import channel_status
 from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
 from .observation import OBSERVATIONS, m2_observation, speed_class
+from .risk import CRITICAL, MAX_SCORE, PPM, r1_ppm, r2_ppm, risk_category, risk_score
 from .table import Table, TableError, decode
 from .types import (
     ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
@@ -96,7 +97,8 @@ def step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State, 
     except Exception:  # noqa: BLE001 - the monitor must never stop; fail to the safe side
         cycle, errors = _inc(state.cycle), _inc(state.error_cycles)
         out = Outputs(EMERGENCY, R_SAFE_STOP | R_SYSTEM_ERROR | R_LATCH, NO_DISTANCE, state.node,
-                      SAFE_STOP, 0, True, 0, cycle, errors, True)
+                      SAFE_STOP, 0, True, 0, cycle, errors, True, r1_ppm=PPM // 2, r2_ppm=PPM,
+                      risk_score=MAX_SCORE, risk_category=CRITICAL, table_risk_ppm=PPM)
         return state._replace(mode=SAFE_STOP, held=EMERGENCY, healthy=0, cycle=cycle, error_cycles=errors, calm=0), out
 
 
@@ -197,7 +199,8 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     #    normal conditions; the observation reads the voted picture alone
     if distance != NO_DISTANCE:
         curve = curves(cfg, speed, track, brake, toward, age)
-        z = _table_zone(cfg, distance, speed, toward, age)
+        alpha1, alpha2 = _zone_limits(cfg, speed, toward, age)
+        z = zone(distance, alpha1, alpha2, cfg.warning_margin_dm)
         env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
     else:
         z = 3 if sys_status == DEGRADED else 0
@@ -207,11 +210,22 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
         env_t, warn_t = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
         env, warn = combine(env, env_t, MAINTAIN), warn or warn_t
-    if setup.model == "m1":
-        obs = z
-    else:
-        spd = speed_class(toward, cfg.fast_closing_cms)
-        obs = m2_observation(z, spd, obstacle, track, brake)
+    spd = speed_class(toward, cfg.fast_closing_cms)
+    obs = z if setup.model == "m1" else m2_observation(z, spd, obstacle, track, brake)
+
+    # the papers' risk at the nearest obstacle, voted or remembered (risk.py); a blind picture
+    # with nothing remembered reads as an obstacle at 0 m, as the observation reads it critical
+    r1 = r2 = 0
+    near_dm = distance
+    if remembered and (distance == NO_DISTANCE or t_dm < distance):
+        near_dm = t_dm
+        alpha1, alpha2 = _zone_limits(cfg, speed, t_closing + own_speed, t_age)
+    elif distance == NO_DISTANCE and sys_status == DEGRADED:
+        near_dm = 0
+        alpha1, alpha2 = _zone_limits(cfg, speed, speed, 0)
+    if near_dm != NO_DISTANCE:
+        r1, r2 = r1_ppm(near_dm, alpha1), r2_ppm(near_dm, alpha1, alpha2)
+    score = risk_score(z, spd, obstacle, track, brake)
 
     # modes; a dispute is a system error with every channel fresh: channels disagree
     # about an obstacle, answered by the curves and a warning rather than by safe_reaction
@@ -298,17 +312,17 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
                       table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_cycles, t_absent,
                       keep and speed > 0 and held > MAINTAIN)
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
-                  t_dm, t_cycles, t_state)
+                  t_dm, t_cycles, t_state, r1, r2, score, risk_category(score), setup.table.risk[node])
     return new_state, out
 
 
-def _table_zone(cfg: Config, distance: int, speed: int, toward: int, age: int) -> int:
-    """Zone of an obstacle for the table: alpha2 = EBI and alpha1 = the service curve's EBI,
-    both under normal conditions and as zone limits (braking.ebi_dm: without the supervision's
-    sampling period; alpha1 at least alpha2)."""
+def _zone_limits(cfg: Config, speed: int, toward: int, age: int) -> tuple[int, int]:
+    """(alpha1, alpha2) of the table's zones and of the papers' risk: alpha2 = EBI and alpha1
+    = the service curve's EBI, both under normal conditions and as zone limits (braking.ebi_dm:
+    without the supervision's sampling period; alpha1 at least alpha2)."""
     alpha2 = ebi_dm(cfg, speed, 0, 0, toward, age)
     alpha1 = ebi_dm(cfg, speed, 0, 0, toward, age, service=True)
-    return zone(distance, alpha1 if alpha1 > alpha2 else alpha2, alpha2, cfg.warning_margin_dm)
+    return (alpha1 if alpha1 > alpha2 else alpha2), alpha2
 
 
 def replay(setup: Setup, sequence) -> list:

@@ -121,3 +121,8 @@ class Outputs(NamedTuple):
     track_dm: int = NO_DISTANCE  # remembered obstacle's predicted (worst-case) distance, NO_DISTANCE if none
     track_cycles: int = 0        # cycles since the remembered obstacle was last voted
     track_state: int = 0         # TRACK_NONE / SEEN / HELD / CONFIRMING / FORGOTTEN / PASSED
+    r1_ppm: int = 0              # seed 000 eq. 16 at the nearest obstacle (risk.py)
+    r2_ppm: int = 0              # seed 000 eq. 17
+    risk_score: int = 0          # seed 001 eq. 11, rho
+    risk_category: int = 1       # 1 low, 2 moderate, 3 high, 4 critical
+    table_risk_ppm: int = 0      # the table's risk column at the node: P(hazard within 30 s | node)

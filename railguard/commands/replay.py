@@ -14,14 +14,14 @@ HEADER = "    time  demand     mode       node  voted distance  track           
 
 
 def _plot(args: argparse.Namespace, points) -> Path:
-    from can_bus.runner import track_columns
+    from can_bus.runner import risk_columns, track_columns
     from monitor.core.types import NO_DISTANCE
     from monitor.plot import plot_run
 
     return plot_run(Path(args.out) / f"replay-{Path(args.file).stem}.png", f"railguard replay: {Path(args.file).name}",
                     [x.tick / 1000 for x in points], [0.0 if x.speed_cms is None else x.speed_cms / 100 for x in points],
                     None, [None if x.distance_dm == NO_DISTANCE else x.distance_dm / 10 for x in points],
-                    [x.demand for x in points], [x.mode for x in points], **track_columns(points))
+                    [x.demand for x in points], [x.mode for x in points], **track_columns(points), **risk_columns(points))
 
 
 def _track(d) -> str:
@@ -74,6 +74,10 @@ def _stats_lines(stats: dict, args: argparse.Namespace, first, last) -> None:
     extra = sum(stats["time_anomalies"].values()) - len(stats["time_anomaly_lines"])
     if extra > 0:
         print(f"... and {extra} more timestamp anomalies", file=sys.stderr)
+    risk = stats["risk"]
+    print(f"risk: peak R1 {risk['peak_r1_pct']:g} %, R2 {risk['peak_r2_pct']:g} %, table {risk['peak_table_ppm']:,} ppm; "
+          f"seed 001 category: low {risk['low_s']:g} s, moderate {risk['moderate_s']:g} s, high {risk['high_s']:g} s, "
+          f"critical {risk['critical_s']:g} s")
     track = stats["track"]
     if track["held_total_s"] or track["forgotten"] or track["passed"]:
         print(f"track held while no channel showed it: longest {track['held_longest_s']:g} s, "

@@ -26,7 +26,8 @@ from monitor.core.types import (
 )
 
 from .reference import (
-    ACCEPTED, BRAKE_DEMAND, FILTERED, LAYOUT, MONITOR_STATUS, MONITOR_TRACK, OUTPUTS, UNUSED, ReferenceReceiver,
+    ACCEPTED, BRAKE_DEMAND, FILTERED, LAYOUT, MONITOR_RISK, MONITOR_STATUS, MONITOR_TRACK, OUTPUTS, UNUSED,
+    ReferenceReceiver,
     e2e_crc, unpack,
 )
 from .stats import Stats, describe
@@ -298,8 +299,8 @@ class Harness:
         track's unvoted cycles times the period, to the nearest 0.1 s, saturating)."""
         bus = self.bus
         if bus.sent != sent0 + len(OUTPUTS) or bus.sent_ids != list(OUTPUTS):
-            return (f"the cycle sent {[f'0x{i:02X}' for i in bus.sent_ids]}, not BrakeDemand, MonitorStatus "
-                    f"and MonitorTrack")
+            return (f"the cycle sent {[f'0x{i:02X}' for i in bus.sent_ids]}, not BrakeDemand, MonitorStatus, "
+                    f"MonitorTrack and MonitorRisk")
         values = {}
         for fid in OUTPUTS:
             m = bus.last_sent[fid]
@@ -325,6 +326,10 @@ class Harness:
                 or abs(tr["TrackAge"] * 100 - age_ms) > 50:
             return (f"sent MonitorTrack {tr} for track state {out.track_state}, distance {out.track_dm}, "
                     f"{out.track_cycles} cycles unvoted, reasons {out.reasons}")
+        rk = values[MONITOR_RISK]       # the outputs in the DBC's units, rounded up (0.1 % from ppm)
+        want = (out.risk_category, out.risk_score, -(-out.r1_ppm // 1000), -(-out.r2_ppm // 1000), out.table_risk_ppm)
+        if (rk["RiskCategory"], rk["RiskScore"], rk["R1"], rk["R2"], rk["TableRisk"]) != want:
+            return f"sent MonitorRisk {rk} for the core's risk {want}"
         return ""
 
     def _core_problem(self, before, s, out) -> str:

@@ -29,6 +29,7 @@ OBSTACLES = tuple(range(0x20, 0x26))
 TRAIN_STATE = 0x30
 MONITOR_STATUS = 0x40
 MONITOR_TRACK = 0x41
+MONITOR_RISK = 0x42
 INPUTS = frozenset(OBSTACLES) | {TRAIN_STATE}
 _E2E = (("Crc", 0, 8, False, 0, 255), ("Counter", 8, 4, False, 0, 15))
 _OBSTACLE = _E2E + (("Status", 12, 2, False, 0, 2), ("ObstacleType", 14, 2, False, 0, 2),
@@ -48,6 +49,10 @@ LAYOUT = {
     MONITOR_TRACK: _E2E + (("TrackState", 12, 3, False, 0, 5), ("Memory", 15, 1, False, 0, 1),
                            ("TrackDistance", 16, 16, False, 0, 65535),   # [0|6553.5] m at 0.1 m, 65535 no_track
                            ("TrackAge", 32, 16, False, 0, 65535)),       # [0|6553.5] s at 0.1 s
+    MONITOR_RISK: _E2E + (("RiskCategory", 12, 3, False, 1, 4), ("RiskScore", 16, 5, False, 0, 20),
+                          ("R1", 21, 10, False, 0, 500),                # [0|50] % at 0.1 %
+                          ("R2", 31, 11, False, 0, 1000),               # [0|100] % at 0.1 %
+                          ("TableRisk", 42, 20, False, 0, 1000000)),    # ppm
 }
 # The bits no signal of a message uses: the monitor sends them 0 (MonitorTrack's comment: bits 48-63 reserved, 0).
 UNUSED = {fid: ~sum(((1 << length) - 1) << start for _, start, length, *_ in sig) & (2**64 - 1)
@@ -59,8 +64,8 @@ DBC_IDS = tuple(sorted(LAYOUT))
 # output IDs (live, never received from itself: any frame there is foreign), and the
 # ForeignOutput hold: set in every cycle within FOREIGN_HOLD_CYCLES periods of the last
 # foreign frame ("within the last second", the DBC's comment on MonitorStatus.ForeignOutput).
-MONITORED = frozenset((BRAKE_DEMAND, *OBSTACLES, TRAIN_STATE, MONITOR_STATUS, MONITOR_TRACK))
-OUTPUTS = (BRAKE_DEMAND, MONITOR_STATUS, MONITOR_TRACK)    # sent every cycle, in this order
+MONITORED = frozenset((BRAKE_DEMAND, *OBSTACLES, TRAIN_STATE, MONITOR_STATUS, MONITOR_TRACK, MONITOR_RISK))
+OUTPUTS = (BRAKE_DEMAND, MONITOR_STATUS, MONITOR_TRACK, MONITOR_RISK)    # sent every cycle, in this order
 FOREIGN_HOLD_CYCLES = 10
 # The rate policing (docs/can.md, "an input sender with more than 3 frames within one period:
 # quarantined 0.5 s, its channel withdrawn").

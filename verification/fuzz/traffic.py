@@ -16,7 +16,7 @@ from can_bus import codec
 
 from .harness import Harness, StreamStop
 from .reference import (
-    BRAKE_DEMAND, CAN_ERR_FLAG, DBC_IDS, ERR_BUSOFF, ERR_CRTL, ERR_RESTARTED, MONITOR_TRACK, MONITORED, OBSTACLES,
+    BRAKE_DEMAND, CAN_ERR_FLAG, DBC_IDS, ERR_BUSOFF, ERR_CRTL, ERR_RESTARTED, MONITOR_RISK, MONITOR_TRACK, MONITORED, OBSTACLES,
     OUTPUTS, TRAIN_STATE,
 )
 
@@ -95,7 +95,7 @@ OP_TABLES = {name: _op_table(w) for name, w in PROFILES.items()}
 SPEEDS = (0, 0, 300, 1500, 4000, 8000, 12000)
 FD_LENGTHS = (12, 16, 20, 24, 32, 48, 64)
 MONITORED_IDS = tuple(sorted(MONITORED))
-UNMONITORED_NEIGHBOURS = (0x000, 0x00F, 0x011, 0x01F, 0x026, 0x02F, 0x031, 0x03F, 0x042, 0x410, 0x420, 0x7FF)
+UNMONITORED_NEIGHBOURS = (0x000, 0x00F, 0x011, 0x01F, 0x026, 0x02F, 0x031, 0x03F, 0x043, 0x410, 0x420, 0x7FF)
 ERROR_CLASSES = (ERR_CRTL, ERR_CRTL, ERR_CRTL, ERR_BUSOFF, ERR_RESTARTED, ERR_CRTL | ERR_RESTARTED,
                  0x001, 0x002, 0x008, 0x010, 0x020, 0x080, 0x200)     # the rest: TX timeout, arbitration, ...
 CTRL_BYTES = (0x04, 0x08, 0x10, 0x20, 0x40, 0x14, 0x00, 0x01, 0x02)
@@ -158,6 +158,9 @@ class Traffic:
             b = t.u8()
             return {"TrackState": b % 6, "Memory": (b >> 3) & 1, "TrackDistance": self.pick(0, 65535),
                     "TrackAge": t.u16()}
+        if frame_id == MONITOR_RISK:
+            return {"RiskCategory": 1 + t.u8() % 4, "RiskScore": t.u8() % 21, "R1": self.pick(0, 500),
+                    "R2": self.pick(0, 1000), "TableRisk": self.pick(0, 1000000)}
         return {"Mode": t.u8() & 3, "Node": t.u16() & 1023, "ErrorFlags": t.u8() & 63, "VotedDistance": t.u16(),
                 "TableHash": t.u16() & 4095, "DeadlineMisses": t.u8() & 15}
 

@@ -999,20 +999,24 @@ static void safe_stop_fallback(rg_state *s, rg_outputs *out)
     out->track_dm = RG_NO_DISTANCE;
     out->track_cycles = 0;
     out->track_state = RG_TRACK_NONE;
+    out->r1_ppm = (int32_t)(RG_PPM / 2u);
+    out->r2_ppm = (int32_t)RG_PPM;
+    out->risk_score = RG_MAX_RISK_SCORE;
+    out->risk_category = 4;
+    out->table_risk_ppm = (int32_t)RG_PPM;
 }
 
-/* cycle._table_zone: zone of an obstacle for the table: alpha2 = EBI and alpha1 = the
- * service curve's EBI, both under normal conditions and as zone limits (RG_ZONE_PERIODS:
- * without the supervision's sampling period; alpha1 at least alpha2). */
-static int32_t table_zone(const rg_config *cfg, int32_t distance, int32_t speed, int32_t toward, int32_t age)
+/* cycle._zone_limits: alpha2 = EBI and alpha1 = the service curve's EBI, both under normal
+ * conditions and as zone limits (RG_ZONE_PERIODS: without the supervision's sampling period;
+ * alpha1 at least alpha2); the table's zones and the papers' risk read them. */
+static void zone_limits(const rg_config *cfg, int32_t speed, int32_t toward, int32_t age, int32_t *alpha1,
+                        int32_t *alpha2)
 {
     rg_curve_set c;
-    int32_t alpha1, alpha2;
     rg_curves(cfg, speed, 0, 0, toward, age, 0, RG_ZONE_PERIODS, &c);
-    alpha2 = c.ebi_dm;
+    *alpha2 = c.ebi_dm;
     rg_curves(cfg, speed, 0, 0, toward, age, 1, RG_ZONE_PERIODS, &c);
-    alpha1 = c.ebi_dm > alpha2 ? c.ebi_dm : alpha2;
-    return rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
+    *alpha1 = c.ebi_dm > *alpha2 ? c.ebi_dm : *alpha2;
 }
 
 void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inputs *in, int64_t tick, rg_outputs *out)
@@ -1036,6 +1040,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
     int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
+    int32_t spd, near_dm, alpha1 = 1, alpha2 = 0, r1, r2, score;
     int32_t i, m;
     rg_track trk;
     rg_decision dec;
@@ -1160,7 +1165,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
      *    observation reads the voted picture alone */
     if (present) {
         rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
-        z = table_zone(cfg, distance, speed, toward, age);
+        zone_limits(cfg, speed, toward, age, &alpha1, &alpha2);
+        z = rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
     }
@@ -1169,12 +1175,22 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, RG_SUPERVISED_PERIODS,
                   &tcurve);
     }
-    if (t->model == RG_MODEL_M1) {
-        obs = z;
-    } else {
-        int32_t spd = speed_class(toward, cfg->fast_closing_cms);
-        obs = (((z * 3 + spd) * 3 + obstacle) * 2 + track) * 2 + brake;
+    spd = speed_class(toward, cfg->fast_closing_cms);
+    obs = t->model == RG_MODEL_M1 ? z : (((z * 3 + spd) * 3 + obstacle) * 2 + track) * 2 + brake;
+
+    /* the papers' risk at the nearest obstacle, voted or remembered; a blind picture with
+     * nothing remembered reads as an obstacle at 0 m, as the observation reads it critical */
+    near_dm = distance;
+    if (remembered && (distance == RG_NO_DISTANCE || t_dm < distance)) {
+        near_dm = t_dm;
+        zone_limits(cfg, speed, trk.closing_cms + own_speed, trk.age_ms, &alpha1, &alpha2);
+    } else if (distance == RG_NO_DISTANCE && sys_status == RG_DEGRADED) {
+        near_dm = 0;
+        zone_limits(cfg, speed, speed, 0, &alpha1, &alpha2);
     }
+    r1 = near_dm != RG_NO_DISTANCE ? rg_r1_ppm(near_dm, alpha1) : 0;
+    r2 = near_dm != RG_NO_DISTANCE ? rg_r2_ppm(near_dm, alpha1, alpha2) : 0;
+    score = rg_risk_score(z, spd, obstacle, track, brake);
 
     /* modes; a dispute is a system error with every channel fresh and the train input valid */
     error = sys_error || !train_ok;
@@ -1288,7 +1304,77 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     out->cycle = s->cycle;
     out->error_cycles = error_cycles;
     out->warning = warn;
+    out->r1_ppm = r1;
+    out->r2_ppm = r2;
+    out->risk_score = score;
+    out->risk_category = rg_risk_category(score);
+    out->table_risk_ppm = (int32_t)node_risk(t, (uint32_t)node);
     out->track_dm = t_dm;
     out->track_cycles = t_cycles;
     out->track_state = t_state;
+}
+
+/* ---------------------------------------------------------------- the papers' risk (risk.py) */
+
+#define RG_EXP_STEP 1072693760u   /* round(exp(-1/1024) * 2^30) */
+#define RG_R1_K_LIMIT 16384       /* 5 d / alpha1 >= 16: R1 < 0.12 ppm, reported 0 */
+
+/* e^(-k/1024) in Q30, floored at every product (risk.exp_neg_q30) */
+static uint64_t exp_neg_q30(int32_t k)
+{
+    uint64_t result = 1u << 30, base = RG_EXP_STEP;
+    while (k) {
+        if (k & 1) result = (result * base) >> 30;
+        base = (base * base) >> 30;
+        k >>= 1;
+    }
+    return result;
+}
+
+/* 1 / (1 + e^(k/1024)) in 1/1024 ppm from q = e^(-k/1024) in Q30 */
+static int64_t r1_fine(uint64_t q)
+{
+    return (int64_t)((((uint64_t)RG_PPM << 10) * q) / ((1u << 30) + q));
+}
+
+int32_t rg_r1_ppm(int32_t distance_dm, int32_t alpha1_dm)
+{
+    const int64_t num = (int64_t)5 * 1024 * distance_dm;
+    int64_t here, there, k, rem, r1;
+    uint64_t q;
+    if (alpha1_dm <= 0) return distance_dm == 0 ? (int32_t)(RG_PPM / 2u) : 0;
+    k = num / alpha1_dm;
+    rem = num % alpha1_dm;
+    if (k >= RG_R1_K_LIMIT) return 0;
+    q = exp_neg_q30((int32_t)k);
+    here = r1_fine(q);
+    there = r1_fine((q * RG_EXP_STEP) >> 30);   /* k + 1 */
+    r1 = (here - ((here - there) * rem) / alpha1_dm + 512) >> 10;
+    /* never acts (0 <= r1 <= 500000 already); EVA does not relate here and there */
+    return r1 < 0 ? 0 : (r1 > (int64_t)(RG_PPM / 2u) ? (int32_t)(RG_PPM / 2u) : (int32_t)r1);
+}
+
+int32_t rg_r2_ppm(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm)
+{
+    int64_t span, r2;
+    if (distance_dm <= alpha2_dm) return (int32_t)RG_PPM;
+    if (distance_dm >= alpha1_dm) return 0;
+    span = (int64_t)alpha1_dm - alpha2_dm;
+    if (span <= 0) return (int32_t)RG_PPM;      /* never: alpha2 < distance < alpha1 (for EVA) */
+    r2 = (((int64_t)alpha1_dm - distance_dm) * RG_PPM + span - 1) / span;
+    /* never acts (0 < r2 <= 10^6: 0 < alpha1 - distance < span); EVA does not relate them */
+    return r2 < 0 ? 0 : (r2 > (int64_t)RG_PPM ? (int32_t)RG_PPM : (int32_t)r2);
+}
+
+int32_t rg_risk_score(int32_t zone, int32_t speed, int32_t obstacle, int32_t track, int32_t brake)
+{
+    return 3 * zone + 2 * speed + 2 * obstacle + track + 2 * brake;
+}
+
+int32_t rg_risk_category(int32_t score)
+{
+    if (score <= 7) return 1;
+    if (score <= 11) return 2;
+    if (score <= 15) return 3;
+    return 4;
 }

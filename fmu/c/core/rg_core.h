@@ -81,6 +81,7 @@
 #define RG_M1_OBSERVATIONS 4
 #define RG_M2_OBSERVATIONS 144
 #define RG_PPM 1000000u            /* the risk column's unit: parts per million */
+#define RG_MAX_RISK_SCORE 20       /* seed 001 eq. 11 at its worst */
 
 typedef struct {
     int32_t heard;        /* 0: never heard from (Python: None) */
@@ -198,6 +199,11 @@ typedef struct {
     int32_t track_dm;     /* remembered obstacle's predicted (worst-case) distance; RG_NO_DISTANCE if none */
     int32_t track_cycles; /* cycles since the remembered obstacle was last voted */
     int32_t track_state;  /* RG_TRACK_NONE / SEEN / HELD / CONFIRMING / FORGOTTEN / PASSED */
+    int32_t r1_ppm;       /* seed 000 eq. 16 at the nearest obstacle (monitor/core/risk.py) */
+    int32_t r2_ppm;       /* seed 000 eq. 17 */
+    int32_t risk_score;   /* seed 001 eq. 11, rho (0..20) */
+    int32_t risk_category; /* 1 low, 2 moderate, 3 high, 4 critical */
+    int32_t table_risk_ppm; /* the table's risk column at the node: P(hazard within 30 s | node) */
 } rg_outputs;
 
 /* Python's braking.Curves: distances to the obstacle in dm, capped at RG_CURVE_CAP_DM */
@@ -290,6 +296,12 @@ int32_t rg_combine(int32_t table_demand, int32_t envelope, int32_t error_demand)
 int32_t rg_hold(int32_t level, int32_t calm, int32_t demand, int32_t speed_cms, int32_t revocable, int32_t confirm,
                 int32_t *calm_out, int32_t *final_demand);
 int32_t rg_table_hold(int32_t level, int32_t demand, int32_t speed_cms, int32_t zone_free);
+
+/* The papers' risk estimators in ppm (monitor/core/risk.py, bit for bit). */
+int32_t rg_r1_ppm(int32_t distance_dm, int32_t alpha1_dm);
+int32_t rg_r2_ppm(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm);
+int32_t rg_risk_score(int32_t zone, int32_t speed, int32_t obstacle, int32_t track, int32_t brake);
+int32_t rg_risk_category(int32_t score);
 int32_t rg_supervised_demand(int32_t voted_dm, int32_t voted_ebi_dm, int32_t voted_sbi_dm, int32_t voted_warning_dm,
                              int32_t remembered, int32_t track_dm, int32_t track_ebi_dm, int32_t track_sbi_dm,
                              int32_t track_warning_dm, int32_t held, int32_t *warning);

@@ -52,6 +52,14 @@ static void set_outputs_start(ModelData *m)
     m->outputs.track_dm = RG_NO_DISTANCE;
     m->outputs.track_cycles = 0;
     m->outputs.track_state = RG_TRACK_NONE;
+    m->outputs.r1_ppm = 0;
+    m->outputs.r2_ppm = 0;
+    m->outputs.risk_score = 0;
+    m->outputs.risk_category = 1;
+    m->outputs.table_risk_ppm = (int32_t)((uint32_t)RG_TABLE_BYTES[RG_TABLE_RISK_OFFSET + 4u * RG_TABLE_START]
+        | ((uint32_t)RG_TABLE_BYTES[RG_TABLE_RISK_OFFSET + 4u * RG_TABLE_START + 1u] << 8)
+        | ((uint32_t)RG_TABLE_BYTES[RG_TABLE_RISK_OFFSET + 4u * RG_TABLE_START + 2u] << 16)
+        | ((uint32_t)RG_TABLE_BYTES[RG_TABLE_RISK_OFFSET + 4u * RG_TABLE_START + 3u] << 24));
 }
 
 #define SET_START(name, start) m->params.name = (start);
@@ -199,6 +207,11 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     case vr_track_dm: return m->outputs.track_dm;
     case vr_track_cycles: return m->outputs.track_cycles;
     case vr_track_state: return m->outputs.track_state;
+    case vr_r1_ppm: return m->outputs.r1_ppm;
+    case vr_r2_ppm: return m->outputs.r2_ppm;
+    case vr_risk_score: return m->outputs.risk_score;
+    case vr_risk_category: return m->outputs.risk_category;
+    case vr_table_risk_ppm: return m->outputs.table_risk_ppm;
     case vr_period_ms: return RG_TABLE_PERIOD_MS;
     case vr_table_nodes: return (int32_t)RG_TABLE_NODES;
     default: return 0;
