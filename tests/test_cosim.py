@@ -275,6 +275,14 @@ def test_cosim_command_json_csv_and_plot(tmp_path, monitor_fmus, train_fmu):
     rows = list(csv.DictReader(open(out["csv"])))
     assert len(rows) == 4000 and {"time_s", "train.speed", "true_distance", "brake_demand", "mode"} <= set(rows[0])
     assert Path(out["plot"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the monitor FMU's live risk, in the CSV and summarised: a late obstacle is approached
+    # deep into the table's zones (R2 above 50 %), and the category seconds cover the run
+    assert {"r1_ppm", "r2_ppm", "risk_score", "risk_category", "table_risk_ppm"} <= set(rows[0])
+    risk = out["risk"]
+    assert risk["peak_r2_pct"] == pytest.approx(max(int(r["r2_ppm"]) for r in rows) / 1e4, abs=0.005)
+    assert risk["peak_r2_pct"] > 50
+    assert risk["peak_table_ppm"] == max(int(r["table_risk_ppm"]) for r in rows) > 0
+    assert sum(risk[f"{c}_s"] for c in ("low", "moderate", "high", "critical")) == pytest.approx(out["simulated_s"], abs=0.01)
 
 
 def test_build_fmu_command_prints_the_path(tmp_path):

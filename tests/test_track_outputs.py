@@ -9,6 +9,8 @@ says it is gone: held), then reports ABSENT, fresh and unanimous, inside the sen
 """
 from __future__ import annotations
 
+import dataclasses
+
 import json
 from pathlib import Path
 
@@ -67,6 +69,15 @@ def test_the_run_summary_has_the_track(setup):
     summary = session.summarise(runner, None, None, None)
     assert set(summary["track"]) == TRACK_KEYS
     assert summary["track"]["forgotten"] == 0 and summary["track"]["held_total_s"] == 0.0
+    # the run summary's risk: three INIT cycles without a channel heard read as an obstacle at
+    # 0 m (R2 100 %, not low: silence is not clear), then a critical cycle at 80 % R2
+    assert summary["risk"]["peak_r2_pct"] == 100.0 and summary["risk"]["low_s"] == 0.0
+    runner.records.append(dataclasses.replace(rec(300, T.TRACK_SEEN), r1_ppm=2_001, r2_ppm=800_000, risk_score=17,
+                                              risk_category=4, table_risk_ppm=584_188))
+    risk = session.summarise(runner, None, None, None)["risk"]
+    assert risk["peak_table_ppm"] == 584_188 and risk["critical_s"] == summary["risk"]["critical_s"] + 0.1
+    assert sum(v for k, v in risk.items() if k.endswith("_s")) == pytest.approx(0.4)
+    runner.records.pop()
     runner.records += [rec(400, T.TRACK_HELD, 900, T.R_MEMORY, 1), rec(500, T.TRACK_HELD, 800, T.R_MEMORY, 2),
                        rec(600, T.TRACK_FORGOTTEN)]
     track = session.summarise(runner, None, None, None)["track"]
@@ -147,6 +158,13 @@ def test_replay_text_lists_the_track_and_the_reason_memory(lost_log, lost, tmp_p
     track = stats["track"]
     assert (f"track held while no channel showed it: longest {track['held_longest_s']:g} s, "
             f"total {track['held_total_s']:g} s; forgotten on evidence 1, passed 0") in out
+    # the live risk as the core gave it: peaks and the time per seed 001 category cover the replay
+    risk = stats["risk"]
+    assert risk["peak_r2_pct"] == max(d.r2_ppm for d in decisions) / 1e4
+    assert risk["peak_table_ppm"] == max(d.table_risk_ppm for d in decisions) > 0
+    assert sum(risk[f"{c}_s"] for c in ("low", "moderate", "high", "critical")) == pytest.approx(len(decisions) * PERIOD / 1000)
+    assert (f"risk: peak R1 {risk['peak_r1_pct']:g} %, R2 {risk['peak_r2_pct']:g} %, "
+            f"table {risk['peak_table_ppm']:,} ppm") in out
     png = tmp_path / f"replay-{lost_log.stem}.png"
     assert png.read_bytes()[:8] == PNG
 
