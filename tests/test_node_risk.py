@@ -112,3 +112,44 @@ def test_a_format_1_table_is_refused_then_upgraded_to_the_shipped_bytes(tmp_path
     assert "format 1 -> 2" in done.stdout and "712 .. 877,864 ppm" in done.stdout
     assert old.read_bytes() == shipped
     assert read_alphas(tmp_path / "m1.alphas.npz", decode(shipped).sha256)[0].shape == alphas.shape
+
+
+# ----------------------------------------------------------------------------- calibration (verification/calibration.py)
+
+def test_calibration_says_calibrated_only_when_it_is_and_which_way_it_misses():
+    """Synthetic worlds whose hazards are drawn with a known probability: the truth is
+    judged calibrated; a column ten times too high conservative, ten times too low optimistic;
+    a world without any hazard says so."""
+    from verification import calibration as cal
+
+    rng = np.random.default_rng(5)
+    steps, trains = 4000, 200
+    risk = np.where(rng.random((steps, trains)) < 0.5, 0.002, 0.05)
+    label = rng.random((steps, trains)) < risk
+    b = cal.bins(risk, label)
+    judged = [x for x in b if x.cycles >= cal.MIN_CYCLES]
+    assert len(judged) == 2 and all(x.inside for x in judged)
+    assert cal.verdict(judged, [x for x in judged if not x.inside], True) == "calibrated"
+    for scale, word in ((10.0, "uncalibrated: conservative"), (0.1, "uncalibrated: optimistic")):
+        wrong = [x for x in cal.bins(np.clip(risk * scale, 0, 1), label) if x.cycles >= cal.MIN_CYCLES]
+        assert cal.verdict(wrong, [x for x in wrong if not x.inside], True) == word
+    assert cal.verdict(judged, [], False) == "no hazard in the world"
+    score, base = cal.brier(risk, label)
+    assert score < base                                   # the true probabilities beat the base rate
+
+
+def test_a_cycle_is_labelled_by_the_hazard_within_the_next_30_s(monkeypatch):
+    """world_cycles' label: cycle t is followed by the hazard iff the hazard comes at some
+    cycle in [t, t + 300]; the last 300 cycles, without a whole horizon, are dropped."""
+    from types import SimpleNamespace
+
+    from verification import calibration as cal
+
+    zone = np.zeros((1000, 2), dtype=np.int64)
+    zone[700, 0] = 3
+    run = SimpleNamespace(trace={"node": np.zeros((1000, 2), dtype=np.int64)}, episode={"zone": zone})
+    monkeypatch.setattr(cal.seed000, "simulate", lambda *a, **k: run)
+    risk, label = cal.world_cycles("m1", 2, 100.0, 0)
+    assert risk.shape == label.shape == (700, 2)
+    assert np.flatnonzero(label[:, 0]).tolist() == list(range(400, 700)) and not label[:, 1].any()
+    assert risk[0, 0] == decode(read("m1")).risk[0] / 1e6

@@ -14,7 +14,7 @@ from pathlib import Path
 from .report import Progress, Section, timed, write_report
 from .scale import ClusterError
 
-PARTS = ("closed_loop", "evaluate", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof",
+PARTS = ("closed_loop", "evaluate", "calibration", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof",
          "physics", "mutation")
 CONFIGURED = ("campaign", "stress")      # parts whose section takes the world (`--braking`, `--world-train`, workers)
 DECLARED = ("physics",)                  # parts whose section takes the braking declaration (`--braking`) alone

@@ -170,7 +170,7 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None, tabl
              ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake",
               "demand", "observation", "node", "reasons", "warning", "track_dm", "track_cycles", "track_state")}
     sample = {k: np.zeros((s.steps, cols.size)) for k in
-              ("true_risk", "belief_risk", "picture_risk", "speed_mps", "distance_m", "present", "demand")}
+              ("true_risk", "belief_risk", "picture_risk", "speed_mps", "distance_m", "present", "demand", "zone")}
 
     acc = {k: np.zeros(n) for k in ("present", "picture", "picture_obst", "belief", "belief_obst",
                                    "reward_paper", "reward_corrected")}
@@ -271,7 +271,7 @@ def simulate(s: Settings, progress: Optional[Callable[[str], None]] = None, tabl
             trace[key][k] = arr[cols]
         for key, arr in (("true_risk", true_risk), ("belief_risk", belief_risk), ("picture_risk", picture_risk),
                          ("speed_mps", v), ("distance_m", np.where(present, dist, np.nan)), ("present", present),
-                         ("demand", applied)):
+                         ("demand", applied), ("zone", zone)):
             sample[key][k] = arr[cols]
 
         # ---- dynamics over the next step (eq. 2, 4, 5, 6); the brakes act after the reaction time
