@@ -117,9 +117,10 @@ def test_table_show_takes_a_shipped_name():
 
 
 def test_table_show_m2_is_read_in_a_minute_and_full_has_every_transition():
-    """Issue 31 item 5: the summary fits 200 lines of at most 160 characters and names every
-    node's action and its successors (all of them, or the most observed and how many more);
-    --full lists every successor of every node."""
+    """Issue 31 items 1 and 5: the summary fits 200 lines of at most 160 characters and names
+    every node's action, its risk (the table's column, ppm) and its successors likeliest first
+    with their probabilities (all of them, or the likeliest and how many more); --full lists
+    every successor of every node."""
     import re
 
     from monitor.core.table import decode
@@ -130,19 +131,24 @@ def test_table_show_m2_is_read_in_a_minute_and_full_has_every_transition():
     assert res.returncode == 0, res.stderr
     lines = res.stdout.splitlines()
     assert len(lines) <= 200 and max(len(line) for line in lines) <= 160
+    assert f"{min(t.risk):,} .. {max(t.risk):,} ppm" in res.stdout            # the risk column's range
     rows = lines[lines.index(next(line for line in lines if line.startswith("node  action"))) + 1:]
     assert len(rows) == t.nodes
     for n, row in enumerate(rows):
-        assert row.split()[:2] == [str(n), t.actions[t.action[n]]]
-        shown = [int(x) for x in re.findall(r"(\d+) <- \d+ obs", row)]
-        more = re.search(r"\+(\d+) more \(--full\)", row)
+        fields = row.split()
+        assert fields[:2] == [str(n), t.actions[t.action[n]]] and int(fields[2].replace(",", "")) == t.risk[n]
+        pieces = row.split(None, 3)[3].split("; ")
+        more = re.fullmatch(r"\+(\d+) more \(--full\)", pieces[-1])
+        shown = pieces[:-1] if more else pieces
         targets = set(t.next[n])
-        assert set(shown) <= targets and len(shown) + (int(more.group(1)) if more else 0) == len(targets), row
-        counts = [int(x) for x in re.findall(r"<- (\d+) obs", row)]
-        assert counts == sorted(counts, reverse=True)                     # the most observed first
+        nodes = [int(p.split()[0]) for p in shown]
+        assert set(nodes) <= targets and len(nodes) + (int(more.group(1)) if more else 0) == len(targets), row
+        chances = [0.0 if p.endswith("never") else float(p.split()[1]) for p in shown]
+        assert chances == sorted(chances, reverse=True), row                  # the likeliest first
+        assert sum(chances) <= 100 + 0.5 * len(chances)                         # rounded percentages
     full = cli("table", "show", "m2", "--full").stdout.splitlines()
     rows = full[full.index(next(line for line in full if line.startswith("node  action"))) + 1:]
-    assert {int(x) for x in re.findall(r"(\d+) <- ", rows[0].split(None, 2)[2])} == set(t.next[0])
+    assert {int(x) for x in re.findall(r"(\d+) <- ", rows[0].split(None, 3)[3])} == set(t.next[0])
     assert max(len(line) for line in full) > 160                          # nothing left out there
 
 
