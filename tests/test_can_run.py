@@ -19,7 +19,7 @@ from can_bus import scenario as scenarios
 from can_bus import session
 from can_bus.clock import SimClock
 from can_bus.codec import (
-    BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
+    BRAKE_DEMAND_ID, MONITOR_RISK_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, OBSTACLE_IDS, REJECT_REASONS, TRAIN_STATE_ID, Receiver,
     Sender, report_signals,
 )
 from can_bus.runner import MonitorRunner
@@ -519,17 +519,18 @@ def test_deadline_overruns_lead_to_safe_stop():
         else:
             assert not rec.reasons & R_DEADLINE, k
             assert rec.mode != SAFE_STOP, k
-    # what went on the bus: three valid E2E frames per cycle, in order
+    # what went on the bus: four valid E2E frames per cycle, in order
     rx = Receiver()
-    assert len(frames) == 3 * len(recs)
+    assert len(frames) == 4 * len(recs)
     demands, statuses = [], []
     for msg in frames:
         assert not msg.is_extended_id and len(msg.data) == 8
         name = rx.accept(msg.arbitration_id, msg.data, 0)
-        assert name in ("BrakeDemand", "MonitorStatus", "MonitorTrack"), dict(rx.rejected)
-        if name != "MonitorTrack":
+        assert name in ("BrakeDemand", "MonitorStatus", "MonitorTrack", "MonitorRisk"), dict(rx.rejected)
+        if name in ("BrakeDemand", "MonitorStatus"):
             (demands if name == "BrakeDemand" else statuses).append(dict(rx.demand if name == "BrakeDemand" else rx.status))
-    assert [f.arbitration_id for f in frames[:3]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID]
+    assert [f.arbitration_id for f in frames[:4]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID,
+                                                      MONITOR_RISK_ID]
     assert len(demands) == len(statuses) == len(recs)
     for k, (dem, st, rec) in enumerate(zip(demands, statuses, recs)):
         assert dem["Level"] == rec.demand and dem["Reason"] == rec.reasons and st["Mode"] == rec.mode, k
@@ -591,7 +592,7 @@ def test_final_emergency_on_shutdown():
     finally:
         mon_bus.shutdown()
         other.shutdown()
-    assert [m.arbitration_id for m in last] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID]
+    assert [m.arbitration_id for m in last] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID, MONITOR_RISK_ID]
     # valid E2E frames with the next counters, so a receiver takes them
     assert rx.accept(last[0].arbitration_id, last[0].data, 1) == "BrakeDemand"
     assert rx.demand["Level"] == EMERGENCY and rx.demand["Reason"] & R_SAFE_STOP

@@ -688,7 +688,7 @@ def test_live_monitor_track_follows_the_records(setup, replays):
     sent = []
     runner = play_live(setup, CORPUS_DIR / "obstacle_approach.log", sent=sent)
     ids = [m.arbitration_id for m in sent]
-    assert ids == [codec.BRAKE_DEMAND_ID, MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID] * len(runner.records)
+    assert ids == [codec.BRAKE_DEMAND_ID, MONITOR_STATUS_ID, codec.MONITOR_TRACK_ID, codec.MONITOR_RISK_ID] * len(runner.records)
     msg = database().get_message_by_frame_id(codec.MONITOR_TRACK_ID)
     track = [msg.decode(bytes(m.data), decode_choices=False, scaling=False)
              for m in sent if m.arbitration_id == codec.MONITOR_TRACK_ID]

@@ -255,7 +255,8 @@ class VectorMonitor:
         self.track_absent = np.zeros(n, dtype=I64)
         self.kept = np.zeros(n, dtype=bool)
         self.m2 = setup.model == "m2"
-        self.risk = np.asarray(setup.table.risk, dtype=I64)      # the table's risk column
+        # the table's risk column at its node; another policy's nodes are not the table's: 0
+        self.risk = np.asarray(setup.table.risk, dtype=I64) if policy is None else None
 
     def _memory(self, present, dist, speed, toward, own) -> tuple:
         """Step 4 of the cycle: the track after this cycle's picture. Every PRESENT picture is
@@ -339,7 +340,7 @@ class VectorMonitor:
         out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
                "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
                "track_state": t_state, "r1_ppm": r1, "r2_ppm": r2, "risk_score": score,
-               "risk_category": risk_category(score), "table_risk_ppm": self.risk[node], "track_far": far, "table": action, "table_demand": table, "curves": c,
+               "risk_category": risk_category(score), "table_risk_ppm": self.risk[node] if self.risk is not None else np.zeros_like(node), "track_far": far, "table": action, "table_demand": table, "curves": c,
                "alpha1_dm": alpha1, "alpha2_dm": alpha2}
         # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
         has = self.near != NO_TRACK

@@ -87,5 +87,5 @@ def register(sub) -> None:
                     "the alpha vectors beside the file (NAME.alphas.npz) are tied to the new digest.",
     )
     u.add_argument("file", metavar="FILE", help="a .table.rgt file (format 1 or 2)")
-    u.add_argument("--out", metavar="PATH", help="write here instead of over FILE")
+    u.add_argument("--out", metavar="PATH", help="write here instead of over FILE (default: over FILE)")
     u.set_defaults(func=upgrade)
