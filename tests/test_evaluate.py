@@ -17,9 +17,10 @@ from monitor.offline.controller import Controller
 from monitor.offline.models import load
 from verification import evaluate as ev
 from verification import pareto
+from verification import sharp_hazard as sh
 from verification.fastcore import TablePolicy, VectorMonitor
 from verification.policies import BeliefTracking, finite_baselines, supervised, supervision_floor
-from verification.world_metrics import PolicyCost, ratio, wilson_upper
+from verification.world_metrics import PolicyCost, paired, ratio, wilson_upper
 
 ENV = {**os.environ, "MPLBACKEND": "Agg"}
 
@@ -167,17 +168,165 @@ def test_policy_cost_counts_braking_without_obstacle_stops_and_changes():
     assert f["stops_per_train_hour"] == pytest.approx(1 / (8 * 0.1 / 3600))
 
 
+# ------------------------------------------------------------------ the sharp estimator
+
+STEPS = 300
+
+
+def _z(est: sh.Sharp, exact: float) -> float:
+    return abs(est.p - exact) / (est.ci / 1.96)
+
+
+@pytest.mark.parametrize("name, policy, guide, episodes", [
+    ("m1", "threshold", "table", 2000),      # guided by a different, safer controller
+    ("m1", "table", "threshold", 2000),      # guided by a riskier one
+    ("m1", "never", None, 2000),             # conditional Monte Carlo alone
+    ("m2", "table", "threshold", 1000),
+])
+def test_sharp_estimator_reproduces_exact_hazards(name, policy, guide, episodes):
+    """The estimator belief tracking is judged with, run on finite-state controllers whose
+    P(hazard) is known exactly: it must land within evaluate.AGREE_Z standard errors, and
+    its interval must be sharp (m1 near 0.001 to a few per cent with 2,000 episodes; plain
+    Monte Carlo would need about a million)."""
+    target = ev.load_target(name)
+    model = target.model
+    ctrls = {**finite_baselines(model), "table": target.controller}
+    exact = ev.hazard_exact(model, ctrls[policy], STEPS)
+    guides = () if guide is None else (sh.Guide(model, ctrls[guide], STEPS),)
+    est = sh.estimate(model, sh.controller(ctrls[policy]), STEPS, episodes, seed=11, guides=guides)
+    assert _z(est, exact) <= ev.AGREE_Z, (est, exact)
+    assert est.relative <= (0.45 if name == "m2" else 0.1), est
+    assert est.episodes == episodes and "conditional Monte Carlo" in est.method
+
+
+def test_guided_estimate_of_its_own_guide_has_no_spread_and_the_guide_is_exact():
+    """With LAMBDA = 1 the change of measure is the zero-variance one for the guide itself:
+    every episode returns the exact figure, which the guide's own values reproduce."""
+    model, ctrl = ev.load_target("m1").model, ev.load_target("m1").controller
+    exact = ev.hazard_exact(model, ctrl, STEPS)
+    guide = sh.Guide(model, ctrl, STEPS)
+    assert guide.exact == pytest.approx(exact, rel=1e-6)
+    est = sh.estimate(model, sh.controller(ctrl), STEPS, 200, seed=1, guides=(guide,), lam=1.0)
+    assert est.p == pytest.approx(exact, rel=1e-6) and est.ci <= 1e-6 * exact
+
+
+def test_an_estimator_without_its_likelihood_ratios_is_caught(monkeypatch):
+    """The check above fails a biased estimator: steering the draws towards the hazard but
+    not weighting them back (ratio 1) lands far outside AGREE_Z."""
+    target = ev.load_target("m1")
+    model = target.model
+    threshold = finite_baselines(model)["threshold"]
+    exact = ev.hazard_exact(model, threshold, STEPS)
+    real = sh._draw
+    monkeypatch.setattr(sh, "_draw", lambda *args: (real(*args)[0], 1.0))
+    est = sh.estimate(model, sh.controller(threshold), STEPS, 2000, seed=11, guides=(sh.Guide(model, target.controller, STEPS),))
+    assert _z(est, exact) > 3 * ev.AGREE_Z, (est, exact)
+
+
+def test_belief_tracking_sharp_estimate_m1():
+    """Belief tracking's P(hazard) on m1 as evaluate estimates it (guided by the table) agrees
+    with the estimate guided by threshold, and is sharp: a tenth of the rule's quarter."""
+    target = ev.load_target("m1")
+    model = target.model
+    est = ev.hazard_belief(target, STEPS, 2000, seed=3)
+    other = sh.estimate(model, sh.belief_tracking(model, *target.alphas), STEPS, 4000, seed=4,
+                        guides=(sh.Guide(model, finite_baselines(model)["threshold"], STEPS),))
+    assert est.relative <= sh.RELATIVE_HALF_WIDTH / 10 and "guided by the table" in est.method
+    assert abs(est.p - other.p) <= ev.AGREE_Z * np.hypot(est.ci, other.ci) / 1.96, (est, other)
+
+
+# ------------------------------------------------------------------ the paired tests
+
+def test_paired_difference_has_the_bootstrap_error_and_beats_the_unpaired_one():
+    """Two policies on the same trains: the linearised paired standard error matches a
+    bootstrap over trains, and shared luck makes it much smaller than the two intervals."""
+    rng = np.random.default_rng(4)
+    n = 200
+    y = rng.integers(50, 150, n).astype(float)
+    luck = rng.gamma(2.0, 0.05, n)
+    xa = rng.binomial(y.astype(int), np.clip(luck, 0, 1)).astype(float)
+    xb = np.minimum(y, xa + rng.binomial(5, 0.5, n))
+    diff, se = paired((xa, y), (xb, y))
+    assert diff == pytest.approx(xa.sum() / y.sum() - xb.sum() / y.sum())
+    boot = []
+    for _ in range(2000):
+        i = rng.integers(0, n, n)
+        boot.append(xa[i].sum() / y[i].sum() - xb[i].sum() / y[i].sum())
+    assert se == pytest.approx(np.std(boot), rel=0.1)
+    unpaired = np.hypot(ratio(xa, y)[1], ratio(xb, y)[1]) / 1.96
+    assert se < unpaired / 3
+    assert all(np.isnan(v) for v in paired((xa[:5], y[:5]), (xb, y)))
+
+
+@pytest.mark.parametrize("diff, se, decision", [
+    (-0.01, 0.006, "better"),               # z = -1.67: one-sided 5 % rejects 'table >= baseline'
+    (-0.01, 0.0062, "indistinguishable"),    # z = -1.61: it does not
+    (-0.01, 0.004, "better"),
+    (0.01, 0.004, "worse"),
+    (0.0, 0.004, "indistinguishable"),
+    (-1e-9, 0.0, "better"),
+    (1e-9, 0.0, "worse"),
+    (0.0, 0.0, "equal"),
+    (float("nan"), 0.1, "indistinguishable"),
+])
+def test_decide_puts_the_burden_on_the_table(diff, se, decision):
+    d = ev.decide(diff, se)
+    assert d["decision"] == decision, d
+    if se and not np.isnan(diff):
+        assert d["p_better"] + d["p_worse"] == pytest.approx(1.0)
+
+
+def test_verdict_words():
+    v = ev.verdict
+    assert v({"a": "better", "b": "indistinguishable"}) == "better"
+    assert v({"a": "better", "b": "equal", "c": "better"}) == "better"
+    assert v({"a": "worse", "b": "indistinguishable"}) == "worse"
+    assert v({"a": "better", "b": "worse"}) == "trade-off"
+    assert v({"a": "indistinguishable", "b": "equal"}) == "indistinguishable"
+    assert set(ev.VERDICTS) == {"better", "worse", "trade-off", "indistinguishable"}
+
+
+def test_a_table_below_a_wide_upper_bound_is_not_better():
+    """Issue 31: the old rule passed a table whose exact P(hazard) was below belief tracking's
+    Monte Carlo upper bound. Judged with the burden on the table, the same table against a
+    sharp estimate below it is worse, against a wide one indistinguishable, never better;
+    it is better only against an estimate clearly above it."""
+    table = {"p_hazard": 0.000906, "p_hazard_ci": 0.0}
+    sharp = ev.compare_figure("p_hazard", table, {"p_hazard": 0.00088, "p_hazard_ci": 3.4e-6})
+    wide = ev.compare_figure("p_hazard", table, {"p_hazard": 0.00085, "p_hazard_ci": 0.0002})
+    above = ev.compare_figure("p_hazard", table, {"p_hazard": 0.00095, "p_hazard_ci": 1e-5})
+    assert (sharp["decision"], wide["decision"], above["decision"]) == ("worse", "indistinguishable", "better")
+    assert sharp["difference"] == pytest.approx(0.000026) and "one-sample" in sharp["test"]
+    exact = ev.compare_figure("p_hazard", table, {"p_hazard": 0.000988, "p_hazard_ci": 0.0})
+    assert exact["decision"] == "better" and exact["ci"] == 0 and exact["test"] == "exact against exact"
+
+
+def test_world_figures_are_compared_train_by_train():
+    """The same mean difference is 'better' when the trains agree (paired) and not when each
+    train's luck differs: the test reads the per-train sums, not the two intervals."""
+    y = np.full(50, 100.0)
+    rng = np.random.default_rng(0)
+    luck = rng.integers(0, 40, 50).astype(float)
+    table = {"unnecessary_braking": 0.0, "_per_train": {"unnecessary_braking": (luck, y)}}
+    shared = {"unnecessary_braking": 0.0, "_per_train": {"unnecessary_braking": (luck + 1.0, y)}}
+    own = {"unnecessary_braking": 0.0, "_per_train": {"unnecessary_braking": (rng.permutation(luck) + 1.0, y)}}
+    assert ev.compare_figure("unnecessary_braking", table, shared)["decision"] == "better"
+    assert ev.compare_figure("unnecessary_braking", table, own)["decision"] == "indistinguishable"
+
+
 # ------------------------------------------------------------------ the acceptance, as users run it
 
 @pytest.fixture(scope="module")
 def evaluated(tmp_path_factory) -> dict:
+    """`railguard evaluate NAME --quick` as users run it: m1 in text (its JSON file read
+    back), m2 with --json; each result carries the text or JSON it printed."""
     out = tmp_path_factory.mktemp("evaluate")
-    results = {}
-    for name in ("m1", "m2"):
-        proc = railguard("evaluate", name, "--quick", "--json", "--out", str(out))
-        assert proc.returncode == 0, proc.stderr
-        results[name] = json.loads(proc.stdout)
-    return results
+    proc = railguard("evaluate", "m1", "--quick", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    m1 = json.loads((out / "evaluate-m1.json").read_text())
+    proc2 = railguard("evaluate", "m2", "--quick", "--json", "--out", str(out), "--no-plot")
+    assert proc2.returncode == 0, proc2.stderr
+    return {"m1": {**m1, "stdout": proc.stdout, "out": out}, "m2": json.loads(proc2.stdout)}
 
 
 @pytest.mark.parametrize("name", ["m1", "m2"])
@@ -187,64 +336,124 @@ def test_evaluate_json_has_every_figure_for_the_table_and_every_baseline(evaluat
     for row in (r["table"], *r["baselines"].values()):
         for key in ev.METRICS:
             assert key in row and key + "_ci" in row and np.isfinite(row[key])
+        assert not any(k.startswith("_") for k in row)          # no per-train arrays in the JSON
     assert r["baselines"]["always_emergency"]["unnecessary_braking"] == 1.0
     assert r["baselines"]["always_emergency"]["p_hazard"] <= r["table"]["p_hazard"]
     assert r["baselines"]["never"]["p_hazard"] > r["table"]["p_hazard"]
-    assert all(os.path.isfile(f) for f in r["files"])
-
-
-@pytest.mark.parametrize("name", sorted(ev.ACCEPTED))
-def test_shipped_table_is_no_worse_than_the_baselines_it_is_held_to(evaluated, name):
-    """ACAS X's acceptance rule: the table beats the simple rules on both risk and needless braking
-    (both models since issue 12, docs/models.md section 7)."""
-    r = evaluated[name]
-    assert set(ev.ACCEPTED[name]) == {"threshold", "belief_tracking"}
-    for base in ev.ACCEPTED[name]:
-        b = r["baselines"][base]
-        # exact against exact, or within the Monte Carlo interval of belief tracking's estimate
-        assert r["table"]["p_hazard"] <= b["p_hazard"] + b["p_hazard_ci"], (base, r["table"]["p_hazard"], b["p_hazard"])
-        if (name, base) == ("m2", "threshold"):
-            # A finding of issue 29, not a pass: with the obstacle memory a departing obstacle
-            # is braked for until 7.5 s of confirmed absence, which raises every policy's
-            # needless braking in the seed-001 world (m2 table 0.0020 -> 0.0358, threshold
-            # 0.0033 -> 0.0351, quick size); the m2 table, chosen under the old release rule,
-            # now ties threshold on it (0.0007 worse, inside the estimate's own 95 % interval
-            # of about 0.009). `dominates` says so (False); re-choosing the m2 table under the
-            # memory, with the paired test of issue 31, is open work.
-            assert r["table"]["unnecessary_braking"] <= b["unnecessary_braking"] + b["unnecessary_braking_ci"], base
-            assert r["dominates"][base]["p_hazard"]
-            continue
-        assert r["table"]["unnecessary_braking"] <= b["unnecessary_braking"], base
-        assert r["dominates"][base] == {"p_hazard": True, "unnecessary_braking": True}
     assert r["baselines"]["threshold"]["p_hazard_ci"] == 0.0      # a finite-state baseline: exact
+    if "files" in r:
+        assert all(os.path.isfile(f) for f in r["files"])
 
 
-def test_no_worse_uses_the_interval_of_a_monte_carlo_estimate_only():
-    exact = {"p_hazard": 0.0010, "unnecessary_braking": 0.02}
-    assert ev.no_worse({"p_hazard": 0.0011, "unnecessary_braking": 0.01}, {**exact, "p_hazard_ci": 0.0002}) == \
-        {"p_hazard": True, "unnecessary_braking": True}
-    assert ev.no_worse({"p_hazard": 0.0011, "unnecessary_braking": 0.03}, {**exact, "p_hazard_ci": 0.0}) == \
-        {"p_hazard": False, "unnecessary_braking": False}
+@pytest.mark.parametrize("name", ["m1", "m2"])
+def test_evaluate_gives_belief_trackings_sharp_hazard_and_a_verdict_per_baseline(evaluated, name):
+    """Issue 31's acceptance: the sharp estimate with its interval and method, the paired
+    test per figure, a verdict word per baseline that follows from the decisions."""
+    r = evaluated[name]
+    bt = r["belief_tracking_p_hazard"]
+    assert {"p", "ci", "low", "high", "episodes", "method", "relative_half_width"} <= set(bt)
+    assert "conditional Monte Carlo" in bt["method"] and bt["ci"] > 0
+    assert bt["relative_half_width"] <= sh.RELATIVE_HALF_WIDTH and bt["low"] < bt["p"] < bt["high"]
+    assert bt["p"] == r["baselines"]["belief_tracking"]["p_hazard"]
+    assert set(r["comparisons"]) == set(r["baselines"]) == set(r["verdicts"]) == set(r["acceptance_verdicts"])
+    for base, c in r["comparisons"].items():
+        assert set(c["figures"]) == set(ev.METRICS)
+        for key, f in c["figures"].items():
+            assert f["decision"] in ("better", "worse", "indistinguishable", "equal")
+            assert f["difference"] == pytest.approx(f["table"] - f["baseline"])
+            if key != "p_hazard":
+                assert "paired" in f["test"] and np.isfinite(f["ci"])
+        assert c["verdict"] == r["verdicts"][base] == ev.verdict({k: f["decision"] for k, f in c["figures"].items()})
+        assert c["acceptance"] == ev.verdict({k: c["figures"][k]["decision"] for k in ev.ACCEPTANCE})
+    # exact against exact is decided by the figures themselves
+    assert r["comparisons"]["never"]["figures"]["p_hazard"]["decision"] == "better"
+    assert r["comparisons"]["always_emergency"]["figures"]["p_hazard"]["decision"] == "worse"
+    assert r["comparisons"]["always_emergency"]["figures"]["unnecessary_braking"]["decision"] == "better"
+
+
+@pytest.mark.parametrize("name", ["m1", "m2"])
+def test_shipped_table_against_the_rules_it_is_held_to_and_the_verdicts_stated(evaluated, name):
+    """ACAS X's rule as held (evaluate.ACCEPTED): m1 better than threshold on p_hazard and
+    unnecessary braking, m2 on p_hazard; against belief tracking the stated trade-off (issue
+    31: belief tracking is safer by its sharp estimate, the table brakes needlessly less),
+    and m2 no better than threshold on needless braking (STATED); rule_checks says so."""
+    r = evaluated[name]
+    assert ev.ACCEPTED == {"m1": {"threshold": ("p_hazard", "unnecessary_braking")}, "m2": {"threshold": ("p_hazard",)}}
+    for base, figures in ev.ACCEPTED[name].items():
+        assert ev.verdict({k: r["comparisons"][base]["figures"][k]["decision"] for k in figures}) == "better"
+    bt = r["comparisons"]["belief_tracking"]["figures"]
+    assert bt["p_hazard"]["decision"] == "worse" and bt["unnecessary_braking"]["decision"] != "worse"
+    assert r["acceptance_verdicts"]["belief_tracking"] in ("trade-off", "worse")
+    checks = ev.rule_checks(name, name, r["comparisons"], quick=True)
+    assert checks and all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
+    assert any("belief_tracking worse on p_hazard, better on unnecessary_braking" in c.name for c in checks)
+
+
+def test_a_statement_holds_only_while_the_decisions_say_it():
+    def comp(p, u):
+        return {"figures": {"p_hazard": {"decision": p}, "unnecessary_braking": {"decision": u}}}
+
+    assert ev.holds_statement("m1", "belief_tracking", comp("worse", "better"), quick=False)
+    assert not ev.holds_statement("m1", "belief_tracking", comp("worse", "indistinguishable"), quick=False)
+    assert ev.holds_statement("m1", "belief_tracking", comp("worse", "indistinguishable"), quick=True)
+    # the old rule's reading ('no worse' on p_hazard) contradicts the statement at any size
+    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "better"), quick=True)
+    assert not ev.holds_statement("m2", "belief_tracking", comp("indistinguishable", "worse"), quick=True)
+    assert ev.holds_statement("m2", "threshold", comp("better", "worse"), quick=False)
+    assert not ev.holds_statement("m2", "threshold", comp("better", "better"), quick=True)
+    def threshold(u):
+        return {"threshold": {"figures": {"p_hazard": {"decision": "better", "difference": -1e-4, "ci": 0.0},
+                                          "unnecessary_braking": {"decision": u, "difference": 0.01, "ci": 0.001,
+                                                                  "p_better": 1.0, "p_worse": 1e-9}}}}
+
+    assert ev.rule_checks("m1", "m1", threshold("indistinguishable"), quick=False)[0].passed     # better, none worse
+    checks = ev.rule_checks("m1", "m1", threshold("worse"), quick=False)                     # a trade-off
+    assert not checks[0].passed and "unnecessary_braking +0.01 ± 0.001: worse" in checks[0].figure
+    assert not checks[-1].passed and "belief_tracking missing" in checks[-1].figure
+
+
+@pytest.mark.parametrize("name", ["m1", "m2"])
+def test_risk_axis_rests_on_the_model_when_nothing_collides(evaluated, name):
+    r = evaluated[name]
+    collisions = [row["world_collisions"] for row in (r["table"], *r["baselines"].values())]
+    assert (r["risk_axis"] is not None) == (len(set(collisions)) == 1)
+    if r["risk_axis"]:
+        assert "never included" in r["risk_axis"] and "model alone" in r["risk_axis"]
+    assert ev.risk_axis({"a": {"world_collisions": 0}, "b": {"world_collisions": 1}}) is None
+    same = ev.risk_axis({"a": {"world_collisions": 3, "world_collisions_initial": 3},
+                         "b": {"world_collisions": 3, "world_collisions_initial": 3}})
+    assert same.startswith("every policy collided the same 3 times") and "no demand avoids them" in same
+
+
+def test_evaluate_human_output(evaluated):
+    """The text output says what the JSON says: the sharp estimate, each test, each verdict."""
+    r, text = evaluated["m1"], evaluated["m1"]["stdout"]
+    bt = r["belief_tracking_p_hazard"]
+    assert f"belief tracking's P(hazard): {bt['p']:.3g} ± {bt['ci']:.2g} (95 %" in text
+    for base, c in r["comparisons"].items():
+        assert f"table vs {base}: {c['verdict']} (" in text
+        assert f"(ACAS X's acceptance figures): {c['acceptance']}" in text
+    assert "the burden on the table" in text
+    assert (r["risk_axis"] in text) if r["risk_axis"] else True
+    assert (r["out"] / "evaluate-m1.png").stat().st_size > 1000
 
 
 def test_held_out_world_check_fails_a_table_that_brakes_always_or_lacks_a_baseline(tmp_path):
     """verify's check in the world the sweep did not select on holds a table to the same rule:
-    braking all the time is worse than threshold, and a table whose belief-tracking baseline
-    cannot be built (no alpha vectors beside it) does not pass by default."""
+    braking all the time is worse than threshold on needless braking (a trade-off, not
+    better), and a table whose belief-tracking baseline cannot be built (no alpha vectors
+    beside it) does not pass the statement about it by default."""
     shipped = decode((ROOT / "monitor" / "tables" / "m1.table.rgt").read_bytes())
     path = tmp_path / "brake.table.rgt"
     path.write_bytes(table_format.encode(shipped.header, [2], [[0] * len(shipped.header["observations"])]))
     check = ev.held_out_check(str(path), lambda text: None, sizes=ev.Sizes(trains=8, seconds=60.0, episodes=100))
     assert not check.passed and f"seed {ev.HELD_OUT_SEED}" in check.name
-    assert check.figure.startswith("unnecessary braking 1.00000 vs threshold 0.") and "belief_tracking missing" in check.figure
+    assert check.figure.startswith("FAILS p_hazard -0.000988 (exact): better; unnecessary_braking +0.")
+    assert ": worse (p " in check.figure and check.figure.endswith("| FAILS belief_tracking missing")
     assert ev.HELD_OUT_SEED != ev.SEED
 
 
-def test_evaluate_human_output_and_errors(tmp_path):
-    proc = railguard("evaluate", "m1", "--quick", "--out", str(tmp_path))
-    assert proc.returncode == 0, proc.stderr
-    assert "table vs threshold: no worse on both" in proc.stdout
-    assert (tmp_path / "evaluate-m1.png").stat().st_size > 1000
+def test_evaluate_errors_are_one_line(tmp_path):
     bad = tmp_path / "x.table.rgt"
     bad.write_bytes(b"not a table, but long enough to have a header and a digest: " * 4)
     proc = railguard("evaluate", str(bad), "--quick", "--out", str(tmp_path))
@@ -270,8 +479,19 @@ def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     assert [p["weights"] for p in r["points"]] == [{"braking_weight": 1.0}, {"braking_weight": 4.0}]
     assert r["frontier"] and set(r["frontier"]) <= {0, 1}
     assert {"threshold", "belief_tracking", "always_emergency", "never"} == set(r["baselines"])
-    for i in r["dominating"]:
-        assert pareto.dominates(r["points"][i], r["baselines"]["threshold"])
+    assert set(r["better_than"]) == set(r["baselines"])
+    for i, p in enumerate(r["points"]):
+        assert set(p["against"]) == set(r["baselines"])
+        for base, a in p["against"].items():
+            assert a["verdict"] == ev.verdict({k: a[k]["decision"] for k in ev.ACCEPTANCE})
+            assert (i in r["better_than"][base]) == (a["verdict"] == "better")
+        assert not any(k.startswith("_") for k in p)
+    assert set(r["dominating"]) == {i for i in r["frontier"] if r["points"][i]["against"]["threshold"]["verdict"] == "better"}
+    better_bt = [i for i in r["dominating"] if r["points"][i]["against"]["belief_tracking"]["verdict"] == "better"]
+    assert r["preferred"] == (better_bt or r["dominating"])
+    assert r["recommended"] == (min(r["preferred"], key=lambda i: r["points"][i]["unnecessary_braking"])
+                                if r["preferred"] else None)
+    assert r["baselines"]["belief_tracking"]["p_hazard_ci"] > 0 and "better than belief_tracking" in pareto.render(r)
     front = tmp_path / "pareto-m1"
     assert json.loads((front / "frontier.json").read_text())["points"] == r["points"]
     assert (front / "frontier.png").read_bytes()[:4] == b"\x89PNG"
