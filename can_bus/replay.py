@@ -31,7 +31,9 @@ from typing import Iterable, Iterator, Optional
 from monitor.core import cycle as core
 
 from .logfile import LogError, LogFrame, read
-from .runner import CycleRecord, MonitorCore, RiskTally, TrackTally
+from monitor.risk_summary import RiskTally
+
+from .runner import CycleRecord, MonitorCore, TrackTally
 
 ReplayError = LogError     # the CLI's name for a log that cannot be replayed
 Decision = CycleRecord     # a replayed cycle is recorded exactly like a live one

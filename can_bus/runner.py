@@ -25,6 +25,8 @@ from cantools.autosar.end_to_end import check_profile2_crc
 
 from monitor.core import cycle as core
 from monitor.core.risk import CRITICAL, MAX_SCORE, PPM
+from monitor.risk_summary import RiskTally
+from monitor.risk_summary import risk_columns as columns_of
 from monitor.core.types import (
     EMERGENCY, NO_DISTANCE, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD,
     TRACK_NONE, TRACK_PASSED, Inputs, Outputs,
@@ -113,32 +115,6 @@ class TrackTally:
                 "forgotten": self.forgotten, "passed": self.passed, "memory_cycles": self.memory_cycles}
 
 
-CATEGORY_NAMES = ("low", "moderate", "high", "critical")     # seed 001's categories 1..4
-
-
-@dataclass
-class RiskTally:
-    """The risk over a run, one cycle at a time (constant memory, live and replayed alike):
-    the peaks of R1, R2 and the table's risk, and the time spent in each seed 001 category."""
-
-    period_ms: int
-    peak_r1: int = 0
-    peak_r2: int = 0
-    peak_table: int = 0
-    cycles: list = field(default_factory=lambda: [0, 0, 0, 0])
-
-    def add(self, rec) -> None:
-        self.peak_r1 = max(self.peak_r1, rec.r1_ppm)
-        self.peak_r2 = max(self.peak_r2, rec.r2_ppm)
-        self.peak_table = max(self.peak_table, rec.table_risk_ppm)
-        self.cycles[min(max(rec.risk_category, 1), 4) - 1] += 1
-
-    def as_dict(self) -> dict:
-        return {"peak_r1_pct": round(self.peak_r1 / 1e4, 2), "peak_r2_pct": round(self.peak_r2 / 1e4, 2),
-                "peak_table_ppm": self.peak_table,
-                **{f"{name}_s": n * self.period_ms / 1000 for name, n in zip(CATEGORY_NAMES, self.cycles)}}
-
-
 def risk_summary(records: list, period_ms: int) -> dict:
     tally = RiskTally(period_ms)
     for rec in records:
@@ -159,11 +135,9 @@ def per_mille_up(ppm: int) -> int:
 
 
 def risk_columns(recs) -> dict:
-    """monitor.plot.plot_run's risk columns from cycle records (live or replayed), as probabilities."""
-    return {"risk": {"R1 (seed 000 eq. 16)": [r.r1_ppm / 1e6 for r in recs],
-                     "R2 (seed 000 eq. 17)": [r.r2_ppm / 1e6 for r in recs],
-                     "table: P(hazard in 30 s | node)": [r.table_risk_ppm / 1e6 for r in recs],
-                     "category": [r.risk_category for r in recs]}}
+    """monitor.plot.plot_run's risk columns from cycle records (live or replayed)."""
+    return columns_of([r.r1_ppm for r in recs], [r.r2_ppm for r in recs], [r.table_risk_ppm for r in recs],
+                      [r.risk_category for r in recs])
 
 
 def track_age(cycles: int, period_ms: int) -> int:

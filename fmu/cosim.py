@@ -22,6 +22,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from monitor.risk_summary import RiskTally, risk_columns
+
 from .driver import FmuCallError, Port, close_slave, do_step_function, initialize, open_slave, vr_of
 from .variables import CHANNELS, MONITOR, MONITOR_OUTPUTS, TRAIN
 
@@ -371,22 +373,17 @@ def plot(result: CosimResult, path: Path, title: str) -> Path:
 
 
 def risk_summary(result: CosimResult) -> dict:
-    """The run's risk as `railguard run` and `replay` summarise it (can_bus.runner.RiskTally):
-    peaks, and the time spent in each seed 001 category (rows are communication steps)."""
+    """The run's risk as `railguard run` and `replay` summarise it (monitor.risk_summary):
+    peaks, and the time in each seed 001 category (rows are communication steps)."""
     c = {name: i for i, name in enumerate(result.columns)}
-    rows = result.rows
-    step = result.simulated_s / len(rows) if rows else 0.0
-    peak = {key: max((int(r[c[key]]) for r in rows), default=0) for key in ("r1_ppm", "r2_ppm", "table_risk_ppm")}
-    counts = [sum(1 for r in rows if int(r[c["risk_category"]]) == k) for k in range(1, 5)]
-    return {"peak_r1_pct": round(peak["r1_ppm"] / 1e4, 2), "peak_r2_pct": round(peak["r2_ppm"] / 1e4, 2),
-            "peak_table_ppm": peak["table_risk_ppm"],
-            **{f"{name}_s": round(n * step, 3) for name, n in zip(("low", "moderate", "high", "critical"), counts)}}
+    tally = RiskTally(round(1000 * result.simulated_s / len(result.rows)) if result.rows else 0)
+    for r in result.rows:
+        tally.add_values(*(int(r[c[key]]) for key in ("r1_ppm", "r2_ppm", "table_risk_ppm", "risk_category")))
+    return tally.as_dict()
 
 
 def risk_of(result: CosimResult) -> dict:
     """monitor.plot.draw_risk's columns from the monitor FMU's risk outputs."""
     c = {name: i for i, name in enumerate(result.columns)}
-    ppm = {"R1 (seed 000 eq. 16)": "r1_ppm", "R2 (seed 000 eq. 17)": "r2_ppm", "table: P(hazard in 30 s | node)": "table_risk_ppm"}
-    out = {label: [r[c[name]] / 1e6 for r in result.rows] for label, name in ppm.items()}
-    out["category"] = [int(r[c["risk_category"]]) for r in result.rows]
-    return out
+    return risk_columns(*([r[c[key]] for r in result.rows] for key in ("r1_ppm", "r2_ppm", "table_risk_ppm",
+                                                                        "risk_category")))["risk"]

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from monitor.core.config import Config
+from monitor.core.risk import CATEGORY_NAMES
 from monitor.core.types import (
     DEMAND_NAMES, MODE_NAMES, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED,
 )
@@ -147,7 +148,6 @@ def draw_track(ax, t_s, track_m, track_state, label: bool = True) -> None:
 
 
 CATEGORY_COLORS = {2: "gold", 3: "tab:orange", 4: "tab:red"}     # seed 001's moderate, high, critical
-CATEGORY_NAMES = {1: "low", 2: "moderate", 3: "high", 4: "critical"}
 
 
 def draw_risk(ax, t_s, risk: dict) -> None:
@@ -166,7 +166,7 @@ def draw_risk(ax, t_s, risk: dict) -> None:
                 if c in CATEGORY_COLORS:
                     end = t_s[i] if i < len(t_s) else t_s[-1]
                     ax.axvspan(t_s[start], end, color=CATEGORY_COLORS[c], alpha=0.15, lw=0,
-                               label=None if c in shown else f"rho {CATEGORY_NAMES[c]}")
+                               label=None if c in shown else f"rho {CATEGORY_NAMES[c - 1]}")
                     shown.add(c)
                 start = i
     ax.set_ylim(-0.02, 1.02)

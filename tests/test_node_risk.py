@@ -1,6 +1,7 @@
 """The table's own risk column (monitor/offline/node_risk.py): recomputed from the exact chain
 it was computed from, and witnessed by sampling the closed loop, which shares none of the
-chain's construction (only the model and the table)."""
+chain's construction: only the model, the table and the supervision's floor (what the
+column is defined over, closed_chain.supervision_floor)."""
 from __future__ import annotations
 
 import hashlib

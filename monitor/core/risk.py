@@ -21,8 +21,8 @@ EXP_STEP = 1072693760           # round(exp(-1/1024) * 2^30)
 STEPS_PER_UNIT = 1024           # k = 5 d / alpha1 in 1/1024
 K_LIMIT = 16 * STEPS_PER_UNIT   # 5 d / alpha1 >= 16: R1 < 0.12 ppm, reported 0
 FINE = 10                       # R1 interpolated in 1/1024 ppm
-RISK_WEIGHTS = (3, 2, 2, 1, 2)  # distance, relative speed, obstacle type, track, brake
 LOW, MODERATE, HIGH, CRITICAL = 1, 2, 3, 4
+CATEGORY_NAMES = ("low", "moderate", "high", "critical")     # categories 1..4
 MAX_SCORE = 3 * 3 + 2 * 2 + 2 * 2 + 1 + 2
 
 

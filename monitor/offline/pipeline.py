@@ -181,12 +181,12 @@ def time_step_of(model: POMDP) -> float:
     return float(model.params.get("time_step_s", 0.1))
 
 
-def risk_column(table: table_format.Table) -> list[int]:
+def risk_column(table: table_format.Table, model: Optional[POMDP] = None) -> list[int]:
     """Each node's risk (ppm) recomputed from the exact chain of the model the table names
-    (rebuilt from its header and checked against its model_sha256)."""
+    (rebuilt from its header and checked against its model_sha256, unless given)."""
     from .controller import Controller
 
-    model = rebuild(dict(table.header))
+    model = model if model is not None else rebuild(dict(table.header))
     ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
     return node_risk(model, ctrl, time_step_of(model)).tolist()
 
@@ -198,7 +198,7 @@ def with_risk(data: bytes) -> tuple[bytes, table_format.Table]:
     model = rebuild(dict(old.header))
     step = time_step_of(model)
     header = {k: v for k, v in old.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
-    new = table_format.encode(header, old.action, old.next, risk_column(old), describe_risk(model, step))
+    new = table_format.encode(header, old.action, old.next, risk_column(old, model), describe_risk(model, step))
     return new, old
 
 

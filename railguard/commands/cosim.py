@@ -11,13 +11,9 @@ from ..setup import table_bytes
 from .scenarios import shipped_help
 
 
-def risk_summary(result) -> dict:
-    from fmu.cosim import risk_summary as of
-
-    return of(result)
-
-
 def _summary(scen, result, args: argparse.Namespace, csv_path, plot_path) -> dict:
+    from fmu.cosim import risk_summary
+
     return {
         "scenario": scen.name, "outcome": result.outcome,
         "margin_m": None if result.margin_m is None else round(result.margin_m, 3),
@@ -37,6 +33,7 @@ def _summary(scen, result, args: argparse.Namespace, csv_path, plot_path) -> dic
 def cosim(args: argparse.Namespace) -> int:
     from fmu import build, scenario
     from fmu import cosim as loop
+    from monitor.risk_summary import risk_line
 
     scen = scenario.load(args.scenario)
     if args.braking:
@@ -58,10 +55,7 @@ def cosim(args: argparse.Namespace) -> int:
     brake = "never braked" if result.first_brake_s is None else f"first brake demand at {result.first_brake_s:.1f} s"
     print(f"{scen.name}: {result.outcome}{margin}; {brake}; {result.steps} steps of {args.step * 1000:g} ms "
           f"({result.monitor_cycles} monitor cycles) in {result.wall_s:.2f} s = {result.realtime_factor:,.0f}x real time")
-    risk = risk_summary(result)
-    print(f"risk: peak R1 {risk['peak_r1_pct']:g} %, R2 {risk['peak_r2_pct']:g} %, table {risk['peak_table_ppm']:,} ppm; "
-          f"seed 001 category: low {risk['low_s']:g} s, moderate {risk['moderate_s']:g} s, high {risk['high_s']:g} s, "
-          f"critical {risk['critical_s']:g} s")
+    print(risk_line(loop.risk_summary(result)))
     output.wrote([csv_path, plot_path])
     return 0
 

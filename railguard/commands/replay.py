@@ -61,6 +61,8 @@ def decision_row(d) -> list:
 
 
 def _stats_lines(stats: dict, args: argparse.Namespace, first, last) -> None:
+    from monitor.risk_summary import risk_line
+
     span = 0.0 if first is None else (last.tick - first.tick) / 1000
     print(f"{stats['cycles']} cycles over {span:.1f} s; frames {stats['frames']}, "
           f"accepted {stats['accepted']}, rejected {sum(stats['rejected'].values())}, filtered {stats['filtered']}")
@@ -74,10 +76,7 @@ def _stats_lines(stats: dict, args: argparse.Namespace, first, last) -> None:
     extra = sum(stats["time_anomalies"].values()) - len(stats["time_anomaly_lines"])
     if extra > 0:
         print(f"... and {extra} more timestamp anomalies", file=sys.stderr)
-    risk = stats["risk"]
-    print(f"risk: peak R1 {risk['peak_r1_pct']:g} %, R2 {risk['peak_r2_pct']:g} %, table {risk['peak_table_ppm']:,} ppm; "
-          f"seed 001 category: low {risk['low_s']:g} s, moderate {risk['moderate_s']:g} s, high {risk['high_s']:g} s, "
-          f"critical {risk['critical_s']:g} s")
+    print(risk_line(stats["risk"]))
     track = stats["track"]
     if track["held_total_s"] or track["forgotten"] or track["passed"]:
         print(f"track held while no channel showed it: longest {track['held_longest_s']:g} s, "
