@@ -36,6 +36,7 @@ class TraceRow:
     distance_m: Optional[float]   # true distance to the nearest obstacle ahead, None if none
     demand: int
     mode: Optional[int]
+    tick: int = -1                # the period's tick (ms): joins the world's truth to the bus log
 
 
 @dataclass
@@ -196,7 +197,7 @@ class Player:
             self.move(level)
         speed = self.speed if self.started else 0.0
         near = self.obstacle_distance()
-        self.trace.append(TraceRow(self.t, speed, None if near is None else near[0], level, mode))
+        self.trace.append(TraceRow(self.t, speed, None if near is None else near[0], level, mode, tick))
         if not send:
             self.late_periods += 1
             return

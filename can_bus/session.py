@@ -290,15 +290,18 @@ def reporter(recorder: Recorder, show: Optional[Callable[[str], None]], player: 
 
 
 def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: Optional[Callable[[str], None]] = None,
-                plot: bool = True, duration_s: Optional[float] = None) -> RunResult:
+                plot: bool = True, duration_s: Optional[float] = None, player: Callable[..., Player] = Player) -> RunResult:
     """Monitor + player + recorder on the in-process virtual bus, simulated clock; with
-    `duration_s`, the run ends after that much monitor time even if the scenario has not."""
+    `duration_s`, the run ends after that much monitor time even if the scenario has not.
+    `player(bus, scenario, period_ms)` makes the world's side (default: the scenario player;
+    verification plays recorded worlds through a subclass)."""
     out_dir.mkdir(parents=True, exist_ok=True)     # before any bus is opened: a bad --out is one error, no bus left open
     with StopOnSignal() as stop:
-        return _run_virtual(setup, scenario, out_dir, show, plot, stop, duration_s)
+        return _run_virtual(setup, scenario, out_dir, show, plot, stop, duration_s, player)
 
 
-def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, duration_s=None) -> RunResult:
+def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, duration_s=None,
+                 make_player: Callable[..., Player] = Player) -> RunResult:
     clock = SimClock()
     period = setup.config.period_ms
     buses = [can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False) for _ in range(3)]
@@ -306,7 +309,7 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, du
     log_path = out_dir / f"run-{scenario.name}.log"
     recorder = Recorder(rec_bus, log_path, clock)
     try:
-        player = Player(player_bus, scenario, period)
+        player = make_player(player_bus, scenario, period)
         runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player, period_ms=period))
         limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
         if duration_s is not None:

@@ -384,17 +384,25 @@ def core_outputs(setup: cycle.Setup, present, distance_dm, speed_cms, closing_cm
     period = setup.config.period_ms
     outs = []
     for k in range(len(present)):
-        tick = k * period
-        p = bool(present[k])
-        speed = int(speed_cms[k])
-        age = int(age_ms[k]) if (p and age_ms is not None) else 0
-        rep = Report(PRESENT if p else ABSENT, int(distance_dm[k]) if p else 0,
-                     (speed if closing_cms is None else int(closing_cms[k])) if p else 0,
-                     int(obstacle[k]) if (p and obstacle is not None) else STATIC, tick - age)
-        train = Train(speed, 0 if track is None else int(track[k]), 0 if brake is None else int(brake[k]))
-        state, out = cycle.step(setup, state, Inputs((rep,) * setup.config.channels, train), tick)
+        inputs = cycle_inputs(setup, k, present, distance_dm, speed_cms, closing_cms, obstacle, track, brake, age_ms)
+        state, out = cycle.step(setup, state, inputs, k * period)
         outs.append(out)
     return outs
+
+
+def cycle_inputs(setup: cycle.Setup, k: int, present, distance_dm, speed_cms, closing_cms=None, obstacle=None,
+                 track=None, brake=None, age_ms=None) -> Inputs:
+    """The core's inputs at cycle k of one train's sequence (core_outputs' defaults), every
+    channel alike: what a recorded world's sensors sent, for the core or for the bus."""
+    tick = k * setup.config.period_ms
+    p = bool(present[k])
+    speed = int(speed_cms[k])
+    age = int(age_ms[k]) if (p and age_ms is not None) else 0
+    rep = Report(PRESENT if p else ABSENT, int(distance_dm[k]) if p else 0,
+                 (speed if closing_cms is None else int(closing_cms[k])) if p else 0,
+                 int(obstacle[k]) if (p and obstacle is not None) else STATIC, tick - age)
+    train = Train(speed, 0 if track is None else int(track[k]), 0 if brake is None else int(brake[k]))
+    return Inputs((rep,) * setup.config.channels, train)
 
 
 def _twin_column(trace: dict, key: str, i: int) -> Optional[np.ndarray]:

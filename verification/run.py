@@ -1,7 +1,7 @@
 """`railguard verify`: every part of the evidence, one report.
 
 Parts (each a module with `section(out_dir, quick, progress)`): the closed-loop analysis of
-the shipped tables, the voter's hazard rate, seed 000 and seed 001 reproduced. The report
+the shipped tables, the voter's hazard rate, seed 000 and seed 001 reproduced, their risk figures from the live signal. The report
 (report.md, report.json and the PNGs) goes to one folder; the caller prints one line per
 check and exits non-zero if any fails.
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 from .report import Progress, Section, timed, write_report
 from .scale import ClusterError
 
-PARTS = ("closed_loop", "evaluate", "calibration", "monotone", "hazard", "seed000", "seed001", "campaign", "stress", "fuzz", "proof",
+PARTS = ("closed_loop", "evaluate", "calibration", "monotone", "hazard", "seed000", "seed001", "live_risk", "campaign", "stress", "fuzz", "proof",
          "physics", "mutation")
 CONFIGURED = ("campaign", "stress")      # parts whose section takes the world (`--braking`, `--world-train`, workers)
 DECLARED = ("physics",)                  # parts whose section takes the braking declaration (`--braking`) alone
