@@ -150,12 +150,26 @@ def draw_track(ax, t_s, track_m, track_state, label: bool = True) -> None:
 CATEGORY_COLORS = {2: "gold", 3: "tab:orange", 4: "tab:red"}     # seed 001's moderate, high, critical
 
 
+LOG_FLOOR = 1e-7       # 0.1 ppm: the bottom of the risk panel's logarithmic axis
+
+
 def draw_risk(ax, t_s, risk: dict) -> None:
     """The risk panel, drawn like seed 000's Fig. 7c: each estimator as a probability over
-    time; the seed 001 category shades the background (none while low)."""
-    series = {k: v for k, v in risk.items() if k != "category"}
-    for (label, values), color in zip(series.items(), ("tab:purple", "tab:brown", "black")):
+    time; the seed 001 category shades the background (none while low); the series under
+    "log" (the table's risk, parts per million) on a logarithmic right axis, where a linear
+    one would show them as zero."""
+    series = {k: v for k, v in risk.items() if k not in ("category", "log")}
+    for (label, values), color in zip(series.items(), ("tab:purple", "tab:brown")):
         ax.step(t_s, values, where="post", color=color, lw=1.2, label=label)
+    handles = []
+    if risk.get("log"):
+        right = ax.twinx()
+        right.set_yscale("log")
+        for label, values in risk["log"].items():
+            handles += right.step(t_s, [max(v, LOG_FLOOR) for v in values], where="post", color="black", lw=1.0,
+                                  label=f"{label} (right, log)")
+        right.set_ylim(LOG_FLOOR, 1.5)
+        right.set_ylabel("table risk")
     category = risk.get("category")
     if category:
         shown = set()
@@ -171,7 +185,8 @@ def draw_risk(ax, t_s, risk: dict) -> None:
                 start = i
     ax.set_ylim(-0.02, 1.02)
     ax.set_ylabel("risk")
-    ax.legend(loc="upper left", fontsize=7, ncol=2)
+    left, labels = ax.get_legend_handles_labels()
+    ax.legend(left + handles, labels + [h.get_label() for h in handles], loc="upper left", fontsize=7, ncol=2)
 
 
 def plot_run(path: str | Path, title: str, t_s, speed_mps, distance_m, voted_m, demand, mode,

@@ -43,6 +43,8 @@ def risk_line(risk: dict) -> str:
 
 
 def risk_columns(r1_ppm, r2_ppm, table_risk_ppm, category) -> dict:
-    """monitor.plot.plot_run's `risk` keyword: each estimator as a probability per cycle."""
-    return {"risk": {**{label: [v / PPM for v in values] for label, values in zip(LABELS, (r1_ppm, r2_ppm, table_risk_ppm))},
+    """monitor.plot.plot_run's `risk` keyword: each estimator as a probability per cycle; the
+    table's risk (ppm, often below 10^-4) under "log", drawn on a logarithmic axis."""
+    return {"risk": {LABELS[0]: [v / PPM for v in r1_ppm], LABELS[1]: [v / PPM for v in r2_ppm],
+                     "log": {LABELS[2]: [v / PPM for v in table_risk_ppm]},
                      "category": [int(c) for c in category]}}

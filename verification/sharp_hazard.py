@@ -52,7 +52,7 @@ import numpy as np
 
 from monitor.offline.controller import Controller
 
-from .closed_loop import hazard_states, two_phase_chain
+from monitor.offline.closed_chain import hazard_states, two_phase_chain
 from .policies import BeliefTracking, supervised, supervision_floor
 
 Z95 = 1.96
@@ -85,12 +85,12 @@ class Sharp:
 
 class Guide:
     """A finite-state controller's exact hazard values over its two-phase chain with the
-    supervision in front: X_A[j][node, s] = P(hazard within j cycles) after the node has
+    supervision in front (`supervision=False`: the bare table, as closed_loop analyses it): X_A[j][node, s] = P(hazard within j cycles) after the node has
     read its observation in state s, X_B[j][node, s'] the same before reading (the world
     has just moved to s'), j = 0 .. steps."""
 
-    def __init__(self, model, ctrl: Controller, steps: int):
-        self.ctrl = supervised(ctrl, supervision_floor(model))
+    def __init__(self, model, ctrl: Controller, steps: int, supervision: bool = True):
+        self.ctrl = supervised(ctrl, supervision_floor(model)) if supervision else ctrl
         S = model.shape[0]
         N = self.ctrl.nodes
         NS = N * S
@@ -179,14 +179,15 @@ def _draw(rng, t: np.ndarray, gs: list, lam: float) -> tuple[np.ndarray, np.ndar
 
 
 def episode_figures(model, policy, first_action: int, steps: int, episodes: int, rng: np.random.Generator,
-                    guides: tuple = (), lam: float = LAMBDA) -> np.ndarray:
+                    guides: tuple = (), lam: float = LAMBDA, supervision: bool = True) -> np.ndarray:
     """Y per episode (see the module doc) for `episodes` episodes run together; `policy` has
     TablePolicy's `step(obs, applied) -> (proposed, _)` and proposes `first_action` before
-    any observation (as the table's start node and belief tracking's b0 do)."""
+    any observation (as the table's start node and belief tracking's b0 do); the braking
+    curves' floor in front unless `supervision` is False."""
     S, _, Z = model.shape
     hazard, p_hit, t_safe = _tables(model)
     O = np.asarray(model.O, dtype=float)
-    floor = supervision_floor(model)
+    floor = supervision_floor(model) if supervision else np.zeros(Z, dtype=np.int64)
     b0 = np.asarray(model.b0, dtype=float)
     y = np.full(episodes, float(b0[hazard].sum()))         # the start itself is a hazard
     start = np.where(hazard, 0.0, b0)
@@ -215,9 +216,10 @@ def episode_figures(model, policy, first_action: int, steps: int, episodes: int,
 
 
 def estimate(model, make_policy: Callable[[int], tuple[object, int]], steps: int, episodes: int, seed: int,
-             guides: tuple = (), lam: float = LAMBDA, batch: int = 5000) -> Sharp:
+             guides: tuple = (), lam: float = LAMBDA, batch: int = 5000, supervision: bool = True) -> Sharp:
     """The sharp estimate of P(hazard within `steps` cycles) over `episodes` episodes
-    (batches of `batch`); `make_policy(n)` gives (policy for n episodes, its first action)."""
+    (batches of `batch`); `make_policy(n)` gives (policy for n episodes, its first action);
+    `supervision` as in episode_figures (the guides must be built alike)."""
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     ys = []
@@ -225,7 +227,7 @@ def estimate(model, make_policy: Callable[[int], tuple[object, int]], steps: int
         for lo in range(0, episodes, batch):
             n = min(batch, episodes - lo)
             policy, first = make_policy(n)
-            ys.append(episode_figures(model, policy, first, steps, n, rng, tuple(guides), lam))
+            ys.append(episode_figures(model, policy, first, steps, n, rng, tuple(guides), lam, supervision))
     y = np.concatenate(ys)
     ci = Z95 * float(y.std(ddof=1)) / math.sqrt(len(y)) if len(y) > 1 else math.inf
     return Sharp(float(y.mean()), ci, len(y), time.perf_counter() - t0, METHOD + (GUIDED if guides else ""))
