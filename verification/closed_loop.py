@@ -54,7 +54,7 @@ def table_controller(name: str):
     model, _ = load(name)
     if model_digest(model) != table.header.get("model_sha256"):
         raise ValueError(f"{name}: the model built today does not hash to the one the table was solved for")
-    ctrl = Controller(np.asarray(table.action), np.asarray(table.next), table.start)
+    ctrl = Controller.of_table(table)
     return model, ctrl, table
 
 

@@ -92,7 +92,7 @@ def load_target(spec: str) -> Target:
         model = rebuild(table.header)
     except (TableError, ConfigError) as exc:
         raise type(exc)(f"{spec}: {exc}") from None
-    ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
+    ctrl = Controller.of_table(table)
     if spec in SHIPPED:
         alphas_path = resources.files("monitor.tables").joinpath(f"{spec}{ALPHAS_SUFFIX}")
     else:

@@ -42,6 +42,12 @@ class Controller:
     def nodes(self) -> int:
         return int(self.action.shape[0])
 
+    @classmethod
+    def of_table(cls, table) -> "Controller":
+        """The controller a compiled table (monitor.core.table.Table) runs: its actions, next
+        nodes and start node, without the compile-time beliefs."""
+        return cls(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), int(table.start))
+
     def subset(self, order: np.ndarray, remap: np.ndarray, start: int) -> "Controller":
         """Nodes `order` (old ids) renumbered by `remap[old] = new`."""
         beliefs = None if self.beliefs is None else self.beliefs[order]

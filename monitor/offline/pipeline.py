@@ -187,7 +187,7 @@ def risk_column(table: table_format.Table, model: Optional[POMDP] = None) -> lis
     from .controller import Controller
 
     model = model if model is not None else rebuild(dict(table.header))
-    ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
+    ctrl = Controller.of_table(table)
     return node_risk(model, ctrl, time_step_of(model)).tolist()
 
 

@@ -104,13 +104,11 @@ def closed_loop(table: Table):
     from .params import ConfigError
     from .pipeline import time_step_of
 
-    import numpy as np
-
     try:
         model = rebuild(dict(table.header))
     except (ConfigError, ValueError, KeyError):
         return None
-    ctrl = Controller(np.asarray(table.action, dtype=np.int64), np.asarray(table.next, dtype=np.int64), table.start)
+    ctrl = Controller.of_table(table)
     return analyse(model, ctrl, time_step_of(model))
 
 
