@@ -39,6 +39,16 @@ def test_r2_is_eq_17_rounded_up_and_clipped():
             got = r2_ppm(d, a, a2)
             assert want <= got <= want + 1, (d, a, a2, got, want)
     assert r2_ppm(100, 300, 100) == PPM and r2_ppm(300, 300, 100) == 0 and r2_ppm(200, 300, 100) == 500_000
+    # rounded up where 10^6 (alpha1 - d) leaves a remainder of one span unit: 10^6 / 3
+    assert r2_ppm(2, 3, 0) == 333_334 and r2_ppm(1, 3, 0) == 666_667
+
+
+def test_r1_without_a_distance_scale_is_the_equations_limit():
+    """alpha1 <= 0 (no curve: standstill, a receding obstacle): eq. 16's limit, 50 % at the
+    obstacle and 0 anywhere in front of it."""
+    assert r1_ppm(0, 0) == PPM // 2 and r1_ppm(0, -5) == PPM // 2
+    assert r1_ppm(1, 0) == 0 and r1_ppm(60000, 0) == 0
+    assert r1_ppm(1, 1) == 6_693                  # the smallest scale is a scale: 10^6 / (1 + e^5)
 
 
 def test_score_and_category_are_eq_11_as_printed():
