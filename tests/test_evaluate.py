@@ -479,19 +479,29 @@ def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     assert [p["weights"] for p in r["points"]] == [{"braking_weight": 1.0}, {"braking_weight": 4.0}]
     assert r["frontier"] and set(r["frontier"]) <= {0, 1}
     assert {"threshold", "belief_tracking", "always_emergency", "never"} == set(r["baselines"])
-    assert set(r["better_than"]) == set(r["baselines"])
+    assert set(r["better_than"]) == set(r["baselines"]) | {pareto.REFERENCE}
     for i, p in enumerate(r["points"]):
-        assert set(p["against"]) == set(r["baselines"])
+        assert set(p["against"]) == set(r["baselines"]) | {pareto.REFERENCE}
         for base, a in p["against"].items():
             assert a["verdict"] == ev.verdict({k: a[k]["decision"] for k in ev.ACCEPTANCE})
             assert (i in r["better_than"][base]) == (a["verdict"] == "better")
         assert not any(k.startswith("_") for k in p)
+        # belief tracking as evaluate holds this point to it: its own alpha vectors (the two
+        # points' reward weights differ, so their belief tracking does too); the default
+        # point's is the reference yardstick, and for the default point the two are the same
+        own = p["own_belief_tracking"]
+        assert p["against"]["belief_tracking"]["p_hazard"]["difference"] == pytest.approx(p["p_hazard"] - own["p_hazard"])
+        ref = r["baselines"]["belief_tracking"]["p_hazard"]
+        assert p["against"][pareto.REFERENCE]["p_hazard"]["difference"] == pytest.approx(p["p_hazard"] - ref)
+    assert r["points"][0]["own_belief_tracking"]["p_hazard"] == r["baselines"]["belief_tracking"]["p_hazard"]
+    assert r["points"][1]["own_belief_tracking"]["p_hazard"] != r["points"][0]["own_belief_tracking"]["p_hazard"]
     assert set(r["dominating"]) == {i for i in r["frontier"] if r["points"][i]["against"]["threshold"]["verdict"] == "better"}
     better_bt = [i for i in r["dominating"] if r["points"][i]["against"]["belief_tracking"]["verdict"] == "better"]
     assert r["preferred"] == (better_bt or r["dominating"])
     assert r["recommended"] == (min(r["preferred"], key=lambda i: r["points"][i]["unnecessary_braking"])
                                 if r["preferred"] else None)
     assert r["baselines"]["belief_tracking"]["p_hazard_ci"] > 0 and "better than belief_tracking" in pareto.render(r)
+    assert "own BT p" in pareto.render(r) and "vs BT, default weights" in pareto.render(r)
     front = tmp_path / "pareto-m1"
     assert json.loads((front / "frontier.json").read_text())["points"] == r["points"]
     assert (front / "frontier.png").read_bytes()[:4] == b"\x89PNG"

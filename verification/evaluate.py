@@ -360,6 +360,7 @@ def plot(result: dict, path: Path) -> Path:
 # ----------------------------------------------------------------------------- the report part
 
 FRONTIERS = Path(__file__).resolve().parents[1] / "docs" / "verification"
+SHARP_SWEEP = "sweep-own-belief-tracking.json"    # the sweep with each point's own belief tracking (issue 31)
 # The baselines each model's shipped table is held to in `railguard verify` (ACAS X's rule),
 # and on which figures: the verdict on them must be `better`; a Pareto point must meet the
 # same to be recommended. Belief tracking is not among them: judged with its sharp estimate
@@ -569,4 +570,14 @@ def section(out_dir, quick: bool, progress):
                                     + (f"point {rec} {front['points'][rec].get('sha256', '')[:12]}" if rec is not None else "none")))
             md.append(f"\nPareto sweep ({len(front['points'])} weight vectors; `railguard solve --pareto --model {name}`):\n\n"
                       f"![{name}: Pareto frontier]({fig})\n\n```\n{pareto.render(front)}```\n")
+        sharp_path = FRONTIERS / f"pareto-{name}" / SHARP_SWEEP
+        if sharp_path.is_file():
+            sharp = json.loads(sharp_path.read_text(encoding="utf-8"))
+            own = sharp["better_than"].get("belief_tracking", [])
+            md.append(f"\nThe sweep judged as `evaluate` judges a table (issue 31): every point against belief tracking "
+                      f"with its own alpha vectors, and against the default weights' belief tracking as one yardstick "
+                      f"(`railguard solve --pareto --model {name}`, {'quick' if sharp['quick'] else 'full'} size, seed "
+                      f"{sharp['seed']}; `{sharp_path.name}`). Points better than their own belief tracking: "
+                      + (", ".join(f"#{i}" for i in own) if own else "none") + ".\n\n"
+                      f"```\n{pareto.render(sharp)}```\n")
     return Section("Tables against the simple rules (ACAS X acceptance)", "".join(md), checks, figs)
