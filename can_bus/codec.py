@@ -63,6 +63,11 @@ def encode(frame_id: int, signals: dict, counter: int) -> bytes:
     return bytes(apply_profile2_crc(payload, data_id(frame_id)))
 
 
+def train_signals(train: Train) -> dict:
+    """Raw signals of a TrainState: the core's Train, as the receiver reads it back."""
+    return {"Speed": train.speed_cms, "TrackCondition": train.track, "BrakeStatus": train.brake}
+
+
 def report_signals(report: Report, channel: int) -> dict:
     """Raw signals of an ObstacleReport: the core's units are the DBC's raw units."""
     return {

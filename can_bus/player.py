@@ -20,9 +20,9 @@ from typing import Optional
 
 import can
 
-from monitor.core.types import ABSENT, PRESENT, Report
+from monitor.core.types import ABSENT, PRESENT, Report, Train
 
-from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals
+from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals, train_signals
 from .scenario import CHANNEL_FREE_KINDS, OBSTACLE_TYPES, Scenario
 
 STALE_DEMAND_PERIODS = 3
@@ -202,9 +202,8 @@ class Player:
             self.late_periods += 1
             return
         tr = self.scenario.train
-        self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, {
-            "Speed": round(speed * 100), "TrackCondition": int(tr.track == "slippery"),
-            "BrakeStatus": int(tr.brake == "degraded")}))
+        self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, train_signals(
+            Train(round(speed * 100), int(tr.track == "slippery"), int(tr.brake == "degraded")))))
         self.send_reports(tick)
 
     @property

@@ -210,9 +210,9 @@ SHARP_SEED = 12
 
 
 def sharp_episodes(model, quick: bool) -> int:
-    """Episodes of the sharp estimate (full: evaluate's sizes; Model 1's four states cost
-    nothing). Quick: m2's 250 give about +-12 %, inside the 25 % the check asks."""
-    return (250 if quick else 4000) * (10 if model.shape[0] <= 16 else 1)
+    """Episodes of the sharp estimate (full: evaluate's sizes). Quick: m2's 250 give about
+    +-12 %, inside the 25 % the check asks."""
+    return sharp_hazard.episodes_for(model, 250 if quick else 4000)
 
 
 def section(out_dir, quick: bool, progress: Progress) -> Section:
@@ -220,7 +220,6 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
     episodes = 2000 if quick else 20000
     checks: list[Check] = []
     results: dict = {}
-    sharp_rows: dict = {}
     md = [f"The closed loop of each shipped table and its model, as a Markov chain over (controller "
           f"node, model state). Hazard: m1's Crash state; m2's critical distance level. Horizon "
           f"{HORIZON_S:g} s ({steps} cycles). Exact figures: bounded reachability by repeated sparse "
@@ -270,7 +269,6 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
                                       guides=(sharp_hazard.Guide(model, ctrl, steps, supervision=False),),
                                       supervision=False)
         rows["belief tracking (online)"] = Figures(online.value, sharp.p, online.value_ci, sharp.ci)
-        sharp_rows[name] = (online, sharp)
         results[name] = rows
         worse = [b for b in ("always maintain", "always emergency", "threshold on zone") if rows[b].value > ex.value]
         checks.append(Check(f"closed loop {name}: the table beats every finite-state baseline on its objective", not worse,
@@ -287,7 +285,6 @@ def section(out_dir, quick: bool, progress: Progress) -> Section:
             md.append(f"\nStorm: reward {st.value:.10f}, P(hazard) {st.crash:.12f}.")
         md.append(f" The Monte Carlo reward is truncated at {steps} cycles (bias at most {trunc:.2g}).\n")
         frozen = rows["belief tracking (online)"]
-        online, sharp = sharp_rows[name]
         md.append(f"\nBelief tracking's P(hazard): sharp {sharp.p:.4g} ± {sharp.ci:.2g} ({sharp.relative:.1%} of the "
                   f"estimate, {sharp.episodes:,} episodes, {sharp.seconds:.1f} s); plain Monte Carlo over the "
                   f"{episodes:,} reward episodes {online.crash:.4g} ± {online.crash_ci:.2g}.\n")

@@ -119,9 +119,8 @@ def hazard_belief(target: Target, steps: int, episodes: int, seed: int) -> sharp
 
 
 def belief_episodes(model, sizes: Sizes) -> int:
-    """Episodes for belief tracking's sharp hazard estimate: ten times more for small models
-    (Model 1's four states cost nothing per episode)."""
-    return sizes.episodes * (10 if model.shape[0] <= 16 else 1)
+    """Episodes for belief tracking's sharp hazard estimate (sharp_hazard.episodes_for)."""
+    return sharp_hazard.episodes_for(model, sizes.episodes)
 
 
 def world_cost(target: Target, policy: Optional[Callable[[int], object]], sizes: Sizes, seed: int) -> dict:

@@ -36,6 +36,7 @@ from monitor.offline.params import override
 from . import evaluate
 from .evaluate import ACCEPTANCE, SEED, SIZES, compare, draw_policies, hazard_axes, load_target, public_row
 from .closed_loop import HORIZON_S
+from .policies import finite_baselines
 from .scale import Cluster, map_ordered
 
 GRIDS = {
@@ -97,12 +98,13 @@ def judge_table(table: Path, quick: bool, seed: int) -> dict:
             "_own": rows[PREFERRED]}
 
 
-def baselines(table: Path, quick: bool, seed: int) -> dict:
-    """The baselines judged the same way (belief tracking with this table's alpha vectors,
-    its sharp estimate guided by this table)."""
-    rows = evaluate.judge(load_target(str(table)), SIZES["quick" if quick else "full"], seed)
-    rows.pop("table")
-    return rows
+def baselines(point: dict, quick: bool, seed: int) -> dict:
+    """The baselines judged the same way; belief tracking is the point's own (with its
+    table's alpha vectors, its sharp estimate guided by that table), judged with the point."""
+    target = load_target(point["table"])
+    finite = tuple(finite_baselines(target.model))
+    rows = evaluate.judge(target, SIZES["quick" if quick else "full"], seed, names=finite)
+    return {**rows, PREFERRED: point["_own"]}
 
 
 def against(point: dict, base: dict) -> dict:
@@ -161,7 +163,7 @@ def sweep(name: str, out_dir: Path, quick: bool = True, time_budget: Optional[fl
     defaults = MODELS[name].params      # belief tracking with the alpha vectors of the model's own weights
     default = next((i for i, w in enumerate(grid) if all(getattr(defaults, k, None) == v for k, v in w.items())), 0)
     say(f"pareto {name}: baselines (belief tracking with point {default}'s alpha vectors)")
-    base = baselines(Path(points[default]["table"]), quick, seed)
+    base = baselines(points[default], quick, seed)
     for p in points:
         # belief tracking as `railguard evaluate` would judge this point if it shipped: with its
         # own alpha vectors (the same reward); the default point's under REFERENCE

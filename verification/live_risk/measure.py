@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -23,6 +23,7 @@ from monitor.core.config import Config
 from monitor.offline.risk import r1_logistic, r2_linear
 from monitor.tables import read
 
+from ..seed001.metrics import standard_error
 from ..seed001.world import Settings, load_setup, simulate
 from .bus_log import database, monitor_signals
 from .players import APPEAR_S, seed000_scenarios, true_zones, world_scenario, world_trace_player
@@ -117,7 +118,6 @@ class Seed001Live:
     picture_right_all: int         # the same steps judged by the twin's picture (seed001 part's definition)
     replayed: int = 0
     replay_equal: bool = True
-    logs: list = field(default_factory=list)
 
 
 def seed001_trains(world_trains: int, played: int, seed: int, logs: Path, progress,
@@ -152,7 +152,6 @@ def seed001_trains(world_trains: int, played: int, seed: int, logs: Path, progre
             ok, n = replay_agrees(setup, path, sig)
             res.replay_equal &= ok
             res.replayed += n
-        res.logs.append(path)
     progress(f"live risk: {cols} seed-001 trains played on the bus ({res.cycles:,} cycles)")
     return res
 
@@ -162,11 +161,11 @@ def accuracy_figures(live: Seed001Live) -> dict:
     per_obst = live.right_obstacle / np.maximum(live.obst_per_train, 1)
     steps = live.cycles / max(live.trains, 1)
     per_all = live.right_all / steps
-    se = (lambda x: float(x.std(ddof=1) / math.sqrt(x.size) * 100) if x.size > 1 else math.nan)
     return {
-        "accuracy_all": 100.0 * live.right_all.sum() / max(live.cycles, 1), "accuracy_all_se": se(per_all),
+        "accuracy_all": 100.0 * live.right_all.sum() / max(live.cycles, 1),
+        "accuracy_all_se": 100.0 * standard_error(per_all),
         "accuracy_obstacle": 100.0 * live.right_obstacle.sum() / max(live.obstacle_cycles, 1),
-        "accuracy_obstacle_se": se(per_obst),
+        "accuracy_obstacle_se": 100.0 * standard_error(per_obst),
         "picture_accuracy_all": 100.0 * live.picture_right_all / max(live.cycles, 1),
     }
 

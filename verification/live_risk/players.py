@@ -17,7 +17,7 @@ from typing import Optional
 
 import numpy as np
 
-from can_bus.codec import OBSTACLE_IDS, TRAIN_STATE_ID, report_signals
+from can_bus.codec import OBSTACLE_IDS, TRAIN_STATE_ID, report_signals, train_signals
 from can_bus.player import Player, TraceRow
 from monitor.core.config import Config
 from monitor.scenario import Scenario, parse
@@ -103,9 +103,7 @@ class WorldTracePlayer(Player):
         self.trace.append(TraceRow(k * self.period_ms / 1000, float(self.truth["speed_mps"][k, i]),
                                    None if np.isnan(dist) else dist, self.demand(tick),
                                    None if status is None else int(status["Mode"]), tick))
-        train = inputs.train
-        self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, {
-            "Speed": train.speed_cms, "TrackCondition": train.track, "BrakeStatus": train.brake}))
+        self.send(TRAIN_STATE_ID, self.sender.frame(TRAIN_STATE_ID, train_signals(inputs.train)))
         for ch, rep in enumerate(inputs.reports):
             self.send(OBSTACLE_IDS[ch], self.sender.frame(OBSTACLE_IDS[ch], report_signals(rep, ch)))
 
@@ -119,7 +117,7 @@ class WorldTracePlayer(Player):
 
 def world_trace_player(world: dict, truth: dict, column: int, setup) -> partial:
     """run_virtual's `player` for one recorded seed-001 train."""
-    return partial(WorldTracePlayer, wait_for_monitor=False, world=world, truth=truth, column=column, setup=setup)
+    return partial(WorldTracePlayer, world=world, truth=truth, column=column, setup=setup)
 
 
 def world_scenario(name: str, steps: int, period_ms: int) -> Scenario:

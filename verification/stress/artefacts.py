@@ -22,7 +22,8 @@ def write_candump(model: str, enc: Encounter, d: Disturbance, world, cfg: Config
     was not lost, each cycle at its tick) as a candump -L log."""
     import can
 
-    from can_bus.codec import OBSTACLE_IDS, TRAIN_STATE_ID, Sender, report_signals
+    from can_bus.codec import OBSTACLE_IDS, TRAIN_STATE_ID, Sender, report_signals, train_signals
+    from monitor.core.types import Train
     from can_bus.logfile import format_line
 
     rows = closed_loop(model, enc, d, world, cfg, keep=True)["rows"]
@@ -31,7 +32,7 @@ def write_candump(model: str, enc: Encounter, d: Disturbance, world, cfg: Config
     lines = []
     for tick, reports, speed_cms, _demand, _v, _gap in rows:
         ts = tick / 1000.0
-        frame = sender.frame(TRAIN_STATE_ID, {"Speed": speed_cms, "TrackCondition": 0, "BrakeStatus": 0})
+        frame = sender.frame(TRAIN_STATE_ID, train_signals(Train(speed_cms)))
         lines.append(format_line(can.Message(arbitration_id=TRAIN_STATE_ID, data=frame, is_extended_id=False), ts))
         for c, rep in enumerate(reports):
             if rep is previous[c]:
