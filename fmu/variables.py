@@ -76,6 +76,8 @@ PARAMETER_DOCS = {
                  "obstacle, ms (rounded up to whole cycles), 1..600000",
     "sensor_range_dm": "obstacle memory: the sensors' declared range; absence counts as evidence only inside it, dm, "
                        "1..60000",
+    "forget_single_ms": "obstacle memory: the same as forget_ms for an obstacle only one module ever saw (its "
+                        "ghosts), ms (at most forget_ms counts), 1..600000",
 }
 assert set(PARAMETER_DOCS) == set(Config._fields) - {"period_ms", "topology"}, "a Config field is not a parameter"
 CONFIG_PARAMETERS = tuple(f for f in Config._fields if f in PARAMETER_DOCS)   # in Config's order

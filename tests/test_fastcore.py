@@ -24,7 +24,7 @@ from monitor.core import table as table_mod
 from monitor.core.config import Config, forget_cycles
 from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
-    EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, R_ENVELOPE, R_LATCH, R_MEMORY, R_SBI,
+    EMERGENCY, MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS, NO_DISTANCE, R_DISPUTE, R_ENVELOPE, R_LATCH, R_MEMORY, R_SBI,
     R_TABLE, R_WARNING, SERVICE, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN,
 )
 from monitor.tables import read
@@ -148,7 +148,24 @@ def random_inputs(case: Case, n: int, steps: int, seed: int) -> dict:
         for key, value in (("present", present), ("distance_dm", d), ("speed_cms", v), ("closing_cms", closing),
                            ("obstacle", rng.integers(0, 3, n)), ("track", track), ("brake", brake), ("age_ms", age)):
             out[key][k] = value
+    out["modules"] = module_masks(cfg, n, steps, seed)
     return out
+
+
+def module_masks(cfg: Config, n: int, steps: int, seed: int) -> np.ndarray:
+    """(steps, n) masks of the modules that see what is present: every module for most
+    trains; for a third of them (3oo3 only) each cycle also one module missing it (25 %)
+    or one module alone seeing it (15 %), so that disputes create, bring nearer and keep
+    tracks (issue 38 item 1). Drawn from a generator of their own, so that the other
+    inputs are those the seed always gave."""
+    everyone = (1 << cfg.modules) - 1
+    if cfg.modules == 1:
+        return np.full((steps, n), everyone, dtype=np.int64)
+    rng = np.random.default_rng([seed, 38])
+    disputing = rng.random(n) < 0.35
+    masks = _pick(rng, steps * n, (60, 25, 15), (everyone, rng.choice([6, 5, 3], steps * n),
+                                                 rng.choice([1, 2, 4], steps * n))).reshape(steps, n)
+    return np.where(disputing, masks, everyone).astype(np.int64)
 
 
 def directed_inputs(case: Case) -> dict:
@@ -282,6 +299,13 @@ def test_random_sequences_reach_every_boundary_and_rule(compared):
     demand = t["out_demand"]
     released = (demand[:-1] == EMERGENCY) & (demand[1:] != EMERGENCY) & (v[:-1] > 0) & (v[1:] > 0)
     assert released.any() == (cfg.emergency_release == 1)
+    if cfg.modules == 3:         # disputes between modules create, bring nearer and keep tracks
+        disputed = present & (t["modules"] != 7)
+        before = _previous(t["out_track_dm"], NO_DISTANCE)
+        assert (disputed & (before == NO_DISTANCE) & (t["out_track_state"] == TRACK_SEEN)).sum() >= 100
+        assert (disputed & (before != NO_DISTANCE) & (t["out_track_state"] == TRACK_SEEN)).sum() >= 100
+        assert (disputed & (t["out_track_state"] == TRACK_HELD)).sum() >= 100
+        assert ((t["out_reasons"] & R_DISPUTE) != 0).sum() == disputed.sum()
 
 
 def _run_before(mask: np.ndarray) -> np.ndarray:

@@ -79,17 +79,27 @@ def test_far_travel_is_the_speed_less_its_error_rounded_down_less_acceleration_n
 def test_observe_keeps_positions_in_1e5_m_and_the_obstacle_s_own_speed_from_1_cms():
     # confirmed: 300 dm is 3,000,000 units; an obstacle closing at 1 cm/s keeps its 1 cm/s;
     # the sighting's age comes back, to be counted once when the position is moved
-    assert observe(5000000, 5000000, 0, 300, 1, 40, True) == (3000000, 3000000, 1, 40)
-    assert observe(-1, -1, 0, 300, 0, 40, True) == (3000000, 3000000, 0, 40)
-    assert observe(-1, -1, 0, 300, -5, 40, True) == (3000000, 3000000, 0, 40)    # receding: taken to stop
-    # disputed without a track: nothing is remembered, not even a speed or an age
-    assert observe(-1, -1, 0, 100, 50, 7, False) == (-1, -1, 0, 0)
+    assert observe(5000000, 5000000, 0, 300, 1, 40, True, True) == (3000000, 3000000, 1, 40)
+    assert observe(-1, -1, 0, 300, 0, 40, True, True) == (3000000, 3000000, 0, 40)
+    assert observe(-1, -1, 0, 300, -5, 40, True, True) == (3000000, 3000000, 0, 40)    # receding: taken to stop
+    # disputed without a track and no module sees it with both channels: nothing is
+    # remembered, not even a speed or an age
+    assert observe(-1, -1, 0, 100, 50, 7, False, False) == (-1, -1, 0, 0)
+    # disputed without a track, one module sees it with both channels: remembered as a
+    # confirmed sighting would be (issue 38 item 1), receding taken to stop
+    assert observe(-1, -1, 0, 100, 50, 7, False, True) == (1000000, 1000000, 50, 7)
+    assert observe(-1, -1, 0, 100, -5, 7, False, True) == (1000000, 1000000, 0, 7)
     # disputed exactly at the remembered position: the track takes the sighting (its age, and
     # its far end, which the train's least travel had moved)
-    assert observe(3000000, 3000050, 20, 300, 0, 300, False) == (3000000, 3000000, 20, 300)
-    # disputed and farther: kept, the faster closing speed of the two, and no age (the kept
-    # position's age was counted when it was moved)
-    assert observe(3000000, 3000050, 20, 301, 30, 300, False) == (3000000, 3000050, 30, 0)
+    assert observe(3000000, 3000050, 20, 300, 0, 300, False, False) == (3000000, 3000000, 20, 300)
+    # disputed and farther, with or without a module's sighting: kept, the faster closing
+    # speed of the two, and no age (the kept position's age was counted when it was moved)
+    assert observe(3000000, 3000050, 20, 301, 30, 300, False, False) == (3000000, 3000050, 30, 0)
+    assert observe(3000000, 3000050, 20, 301, 10, 300, False, True) == (3000000, 3000050, 20, 0)
+    # a module's sighting where the track can be (near < d <= far, far included) takes the
+    # position; one channel's does not
+    assert observe(3000000, 3010000, 20, 301, 10, 300, False, True) == (3010000, 3010000, 20, 300)
+    assert observe(3000000, 3010000, 20, 301, 10, 300, False, False) == (3000000, 3010000, 20, 0)
 
 
 def test_forget_leaves_no_evidence_count_behind_when_the_track_goes():
@@ -263,7 +273,7 @@ def test_the_initial_state_remembers_nothing():
     d = normal_driver(Config())
     start = d.setup.table.start
     assert tuple(initial_state(d.setup)) == (INIT, start, MAINTAIN, 0, (0, 0, 0), 0, 0, 0, 0, (0, 0, 0),
-                                             0, -1, -1, 0, 0, 0, False)
+                                             0, -1, -1, 0, 0, 0, False, False)
 
 
 def test_the_memory_defaults_are_the_documented_ones():

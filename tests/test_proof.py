@@ -228,6 +228,8 @@ def test_contracts_state_the_python_properties():
     assert "+ accel_mms2 * period_ms * period_ms + 20000 * obstacle_cms * period_ms" in _contract("rg_near_travel")
     assert "*state == 4 ==> evidence != 0 && 0 <= far <= range_dm * 10000" in _contract("rg_forget")
     assert "confirmed == 0 && \\old(track->near) != -1 ==>" in _contract("rg_observe")
+    # a module's sighting creates the track (issue 38 item 1)
+    assert "ensures sighted != 0 && \\old(track->near) == -1 ==>" in _contract("rg_observe")
 
 
 def test_planted_runtime_error_is_an_eva_alarm():

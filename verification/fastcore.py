@@ -2,11 +2,15 @@
 
 It covers the case the papers simulate: one perception source whose report every channel
 repeats (all channels fresh, in range and agreeing, the train input valid), so the voters
-pass the picture through and no error rule fires. What remains of a cycle is computed here
+pass the picture through and no error rule fires; and, with the `modules` input, the same
+picture seen by some modules only (both channels of a module alike, the others ABSENT): a
+dispute between modules, answered by the curves, a warning and the table held at its node,
+and remembered by the memory (issue 38 item 1). What remains of a cycle is computed here
 with the same integer formulas as monitor/core, written again on arrays: the braking curves
 of `monitor.core.braking` (EBD, EBI, SBI, warning: every term rounded to the safe side), the
 table's zones under normal conditions, the observation, the table step, the obstacle memory
-of `monitor.core.memory` (every PRESENT picture is confirmed and creates the track; an ABSENT
+of `monitor.core.memory` (a PRESENT picture every module sees is confirmed and creates or
+replaces the track, one that some modules see creates it or brings it nearer; an ABSENT
 one, all channels fresh, is evidence that it is gone: the track is predicted worst case each
 cycle, forgotten after `forget_cycles` of evidence inside `sensor_range_dm`, or once passed),
 the supervision ladder (warning, service at SBI, emergency at EBI, held inside SBI) on the
@@ -29,15 +33,17 @@ from monitor.core.braking import CURVE_CAP_DM, SUPERVISED_PERIODS, ZONE_PERIODS
 from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, gradient_accel_mms2
 from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
-    ABSENT, EMERGENCY, MAINTAIN, MAX_COUNT, NO_DISTANCE, NO_TRACK, NORMAL, PRESENT, R_ENVELOPE, R_LATCH, R_MEMORY,
-    R_SBI, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
+    ABSENT, EMERGENCY, MAINTAIN, MAX_COUNT, NO_DISTANCE, NO_TRACK, NORMAL, PRESENT, R_DISPUTE, R_ENVELOPE, R_LATCH,
+    R_MEMORY, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
     TRACK_PASSED, TRACK_SEEN, Inputs, Report, Train,
 )
 
 I64 = np.int64
 OUTPUT_KEYS = ("demand", "reasons", "distance_dm", "node", "observation", "warning", "track_dm", "track_cycles",
                "track_state", "r1_ppm", "r2_ppm", "risk_score", "risk_category", "table_risk_ppm")
-INPUT_KEYS = ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake", "age_ms")
+# `modules`: bit m set if module m sees the obstacle (None: every module, where present)
+INPUT_KEYS = ("present", "distance_dm", "speed_cms", "closing_cms", "obstacle", "track", "brake", "age_ms",
+              "modules")
 
 
 class Curves(NamedTuple):
@@ -254,47 +260,65 @@ class VectorMonitor:
         self.track_cycles = np.zeros(n, dtype=I64)
         self.track_absent = np.zeros(n, dtype=I64)
         self.kept = np.zeros(n, dtype=bool)
+        self.strong = np.zeros(n, dtype=bool)       # State.track_strong
         self.m2 = setup.model == "m2"
         # the table's risk column at its node; another policy's nodes are not the table's: 0
         self.risk = np.asarray(setup.table.risk, dtype=I64) if policy is None else None
 
-    def _memory(self, present, dist, speed, toward, own) -> tuple:
-        """Step 4 of the cycle: the track after this cycle's picture. Every PRESENT picture is
-        confirmed (it creates or replaces the track); ABSENT with every channel fresh is
-        evidence that it is gone. (t_state, remembered, far): the TRACK_* state, whether the
-        track is supervised instead of a voted obstacle, and the far position judged this
-        cycle (before a forgotten or passed track is cleared)."""
+    def _memory(self, present, confirmed, several, dist, speed, toward, own, age) -> tuple:
+        """Step 4 of the cycle: the track after this cycle's picture (memory.observe and
+        forget). A confirmed picture creates or replaces the track, a disputed one (some
+        module sees it) creates it or brings it nearer; ABSENT with every channel fresh is
+        evidence that it is gone, for forget_cycles if the track is strong (confirmed or
+        `several` modules saw it), else for forget_single. (t_state, remembered, far, t_age): the TRACK_* state,
+        whether the track's curves supervise it beside the voted obstacle's, the far position
+        judged this cycle (before a forgotten or passed track is cleared), and the age of
+        the sighting the track took this cycle (0 if it kept its position)."""
         cfg = self.cfg
-        lost = ~present & (self.near != NO_TRACK)
+        had = self.near != NO_TRACK
+        lost = ~present & had
         units = dist * UNITS_PER_DM
-        far = np.where(present, units, np.where(lost, self.far - far_travel(speed, cfg.speed_error_permille,
-                                                                              self.setup.track_accel, cfg.period_ms),
-                                                 self.far))
+        # a sighting sets the position: confirmed, no track yet, nearer than the track or
+        # where it can be (up to far: every present picture here is a module's sighting)
+        takes = present & (confirmed | ~had | (units <= np.maximum(self.near, self.far)))
+        held = present & ~takes                       # a farther disputed sighting: kept
+        far = np.where(takes, units, np.where(lost, self.far - far_travel(speed, cfg.speed_error_permille,
+                                                                          self.setup.track_accel, cfg.period_ms),
+                                              self.far))
         passed = lost & (far < 0)
         evidence = lost & ~passed & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
         count = self.track_absent + 1
-        forgotten = evidence & (count >= self.setup.forget_cycles)
+        strong = (had & self.strong) | confirmed | several
+        forgotten = evidence & (count >= np.where(strong, self.setup.forget_cycles, self.setup.forget_single))
         gone = passed | forgotten
         kept = lost & ~gone
-        t_state = np.select([present, passed, forgotten, evidence, lost],
-                            [TRACK_SEEN, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD], TRACK_NONE)
+        t_state = np.select([takes, held, passed, forgotten, evidence, lost],
+                            [TRACK_SEEN, TRACK_HELD, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD],
+                            TRACK_NONE)
         self.track_absent = np.where(evidence & ~forgotten, count, 0)
-        self.track_cycles = np.where(kept, np.minimum(self.track_cycles + 1, MAX_COUNT), 0)
-        self.near = np.where(present, units, np.where(gone, NO_TRACK, self.near))
+        self.track_cycles = np.where(kept | held, np.minimum(self.track_cycles + 1, MAX_COUNT), 0)
+        self.near = np.where(takes, units, np.where(gone, NO_TRACK, self.near))
         self.far = np.where(gone, NO_TRACK, far)
-        self.track_closing = np.where(present, np.maximum(toward - own, 0), np.where(gone, 0, self.track_closing))
-        return t_state, kept, far
+        self.strong = strong & ~gone
+        own_closing = np.maximum(toward - own, 0)
+        self.track_closing = np.where(confirmed | (present & ~had), own_closing,
+                                      np.where(present, np.maximum(own_closing, self.track_closing),
+                                               np.where(gone, 0, self.track_closing)))
+        remembered = kept | (present & ~confirmed)
+        return t_state, remembered, far, np.where(takes, age, 0)
 
     def step(self, present: np.ndarray, distance_dm: np.ndarray, speed_cms: np.ndarray,
              closing_cms: Optional[np.ndarray] = None, obstacle: Optional[np.ndarray] = None,
              track: Optional[np.ndarray] = None, brake: Optional[np.ndarray] = None,
-             age_ms: Optional[np.ndarray] = None) -> dict:
+             age_ms: Optional[np.ndarray] = None, modules: Optional[np.ndarray] = None) -> dict:
         """One cycle for all trains. closing_cms None: the train's speed (a static obstacle);
-        obstacle, track, brake, age_ms None: 0. Returns the outputs (OUTPUT_KEYS), the policy's
-        own demand (`table`, before the table's hold; `table_demand` after it), the track's
-        `far` position judged this cycle (1e-5 m, what passing and the sensor range are judged
-        on; NO_TRACK without a track), and the curves and zones of the supervised obstacle
-        (the remembered one where no channel shows an obstacle)."""
+        obstacle, track, brake, age_ms None: 0; modules None: every module sees what is
+        present (a bit mask; a train whose mask lacks a module has a dispute where present).
+        Returns the outputs (OUTPUT_KEYS), the policy's own demand (`table`, before the
+        table's hold; `table_demand` after it), the track's `far` position judged this cycle
+        (1e-5 m, what passing and the sensor range are judged on; NO_TRACK without a track),
+        `dispute`, and the curves and zones of the supervised obstacle (the voted one, else
+        the remembered one)."""
         cfg = self.cfg
         present = np.asarray(present, dtype=bool)
         speed = np.asarray(speed_cms, dtype=I64)
@@ -305,18 +329,38 @@ class VectorMonitor:
         dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
         toward = speed if closing_cms is None else np.where(present, closing_cms, speed).astype(I64)
         own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
-        t_state, remembered, far = self._memory(present, dist, speed, toward, own)
+        everyone = (1 << cfg.modules) - 1
+        seeing = np.full(present.shape[0], everyone, dtype=I64) if modules is None else np.asarray(modules, dtype=I64)
+        if present.any() and ((seeing[present] & everyone) == 0).any():
+            raise ValueError("a present obstacle needs at least one module that sees it (modules mask 0)")
+        dispute = present & ((seeing & everyone) != everyone)
+        mask = seeing & everyone
+        several = present & ((mask & (mask - 1)) != 0)      # two modules or more (two bits set)
+        t_state, remembered, far, t_age = self._memory(present, present & ~dispute, several, dist, speed, toward, own,
+                                                       age)
         track_dm = np.where(self.near == NO_TRACK, NO_DISTANCE, self.near // UNITS_PER_DM)
-        # the supervised obstacle: the voted one, or the remembered one where no channel shows it
+        # the supervised obstacle: the voted one, else the remembered one; a disputed picture
+        # with a track has both, each on its own curves (cycle.py step 5), the higher demand
         sup = present | remembered
-        sup_dist = np.where(remembered, track_dm, dist)
-        sup_toward = np.where(remembered, self.track_closing + own, toward)
-        # (age is 0 where no channel shows it: a remembered position's age was counted when moved)
-        c = curves(cfg, speed, track, brake, sup_toward, age)
+        sup_dist = np.where(present, dist, track_dm)
+        t_toward = self.track_closing + own
+        sup_toward = np.where(present, toward, t_toward)
+        sup_age = np.where(present, age, t_age)
+        c = curves(cfg, speed, track, brake, sup_toward, sup_age)
         env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
-        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, age)
+        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age)
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
+        both = present & remembered
+        if both.any():
+            c_t = curves(cfg, speed, track, brake, t_toward, t_age)
+            env_t, warn_t = supervision(both, track_dm, c_t, self.held == EMERGENCY)
+            env, warn = np.maximum(env, env_t), warn | warn_t
+            nearer = both & (track_dm < dist)       # the papers' risk at the nearer of the two
+            t_a1, t_a2 = zone_alphas(cfg, speed, t_toward, t_age)
+            sup_dist = np.where(nearer, track_dm, sup_dist)
+            alpha1, alpha2 = np.where(nearer, t_a1, alpha1), np.where(nearer, t_a2, alpha2)
+        warn = warn | dispute
         spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
         obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
         obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake if self.m2 else zone
@@ -324,7 +368,16 @@ class VectorMonitor:
         r1 = np.where(sup, r1_ppm(np.where(sup, sup_dist, 0), alpha1), 0)
         r2 = np.where(sup, r2_ppm(np.where(sup, sup_dist, 0), alpha1, alpha2), 0)
         score = 3 * zone + 2 * spd + 2 * obst + track + 2 * brake
-        action, node = self.policy.step(obs, self.applied)
+        if dispute.any():                           # a system error holds the table at its node
+            if not isinstance(self.policy, TablePolicy):
+                raise ValueError("disputes between modules are modelled for the table policy only")
+            before = self.policy.node.copy()
+            self.policy.step(obs, self.applied)
+            self.policy.node = np.where(dispute, before, self.policy.node)
+            node = self.policy.node
+            action = self.policy.action[node]
+        else:
+            action, node = self.policy.step(obs, self.applied)
         table = table_hold(self.table_held, action, speed, zone == 0)     # the voted picture's zone
         self.table_held = table
         demand = np.maximum(table, env)
@@ -336,16 +389,17 @@ class VectorMonitor:
         self.applied = final
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
                    | np.where(env == SERVICE, R_SBI, 0) | np.where(final > demand, R_LATCH, 0)
-                   | np.where(warn, R_WARNING, 0) | np.where(remembered, R_MEMORY, 0))
+                   | np.where(warn, R_WARNING, 0) | np.where(remembered & (t_state != TRACK_SEEN), R_MEMORY, 0)
+                   | np.where(dispute, R_SYSTEM_ERROR | R_DISPUTE, 0))
         out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
                "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
                "track_state": t_state, "r1_ppm": r1, "r2_ppm": r2, "risk_score": score,
                "risk_category": risk_category(score), "table_risk_ppm": self.risk[node] if self.risk is not None else np.zeros_like(node), "track_far": far, "table": action, "table_demand": table, "curves": c,
-               "alpha1_dm": alpha1, "alpha2_dm": alpha2}
+               "alpha1_dm": alpha1, "alpha2_dm": alpha2, "dispute": dispute}
         # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
         has = self.near != NO_TRACK
         moved = self.near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.track_closing,
-                                        cfg.period_ms + age)
+                                        cfg.period_ms + t_age)
         self.near = np.where(has, np.maximum(moved, 0), NO_TRACK)
         return out
 
@@ -377,23 +431,26 @@ def twin_trace(setup: cycle.Setup, inputs: dict) -> dict:
 
 
 def core_outputs(setup: cycle.Setup, present, distance_dm, speed_cms, closing_cms=None, obstacle=None,
-                 track=None, brake=None, age_ms=None) -> list:
-    """The real core over one train's sequence (arrays over time), all channels alike; the
-    same defaults as VectorMonitor.step (closing: the train's speed; the rest 0)."""
+                 track=None, brake=None, age_ms=None, modules=None) -> list:
+    """The real core over one train's sequence (arrays over time), the channels of every
+    seeing module alike; the same defaults as VectorMonitor.step (closing: the train's
+    speed; modules: all; the rest 0)."""
     state = cycle.initial_state(setup)
     period = setup.config.period_ms
     outs = []
     for k in range(len(present)):
-        inputs = cycle_inputs(setup, k, present, distance_dm, speed_cms, closing_cms, obstacle, track, brake, age_ms)
+        inputs = cycle_inputs(setup, k, present, distance_dm, speed_cms, closing_cms, obstacle, track, brake, age_ms,
+                              modules)
         state, out = cycle.step(setup, state, inputs, k * period)
         outs.append(out)
     return outs
 
 
 def cycle_inputs(setup: cycle.Setup, k: int, present, distance_dm, speed_cms, closing_cms=None, obstacle=None,
-                 track=None, brake=None, age_ms=None) -> Inputs:
+                 track=None, brake=None, age_ms=None, modules=None) -> Inputs:
     """The core's inputs at cycle k of one train's sequence (core_outputs' defaults), every
-    channel alike: what a recorded world's sensors sent, for the core or for the bus."""
+    channel of a seeing module alike, the others ABSENT: what a recorded world's sensors
+    sent, for the core or for the bus."""
     tick = k * setup.config.period_ms
     p = bool(present[k])
     speed = int(speed_cms[k])
@@ -402,7 +459,11 @@ def cycle_inputs(setup: cycle.Setup, k: int, present, distance_dm, speed_cms, cl
                  (speed if closing_cms is None else int(closing_cms[k])) if p else 0,
                  int(obstacle[k]) if (p and obstacle is not None) else STATIC, tick - age)
     train = Train(speed, 0 if track is None else int(track[k]), 0 if brake is None else int(brake[k]))
-    return Inputs((rep,) * setup.config.channels, train)
+    if not p or modules is None:
+        return Inputs((rep,) * setup.config.channels, train)
+    absent = Report(ABSENT, 0, 0, STATIC, tick)
+    mask = int(modules[k])
+    return Inputs(tuple(rep if mask >> (i // 2) & 1 else absent for i in range(setup.config.channels)), train)
 
 
 def _twin_column(trace: dict, key: str, i: int) -> Optional[np.ndarray]:
@@ -416,19 +477,27 @@ def _twin_column(trace: dict, key: str, i: int) -> Optional[np.ndarray]:
 def first_mismatch(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[Optional[dict], int]:
     """Replay the first `trains` trains of a trace (inputs INPUT_KEYS, twin outputs as
     twin_trace or the seed worlds write them) through the real core; (the first difference
-    or None, cycles compared). Every cycle must also be NORMAL with no flag or error: the
-    case the twin covers."""
+    or None, cycles compared). Every cycle must also be NORMAL with no flag or error (the
+    case the twin covers), but for a dispute between modules: a system error with no module
+    flagged exactly in the disputed cycles."""
     compared = 0
     for i in range(min(trains, trace["present"].shape[1])):
         inp = {k: (trace[k][:, i] if k in trace else None) for k in INPUT_KEYS}
         outs = core_outputs(setup, *(inp[k] for k in INPUT_KEYS))
         twin = {k: c for k in OUTPUT_KEYS if (c := _twin_column(trace, k, i)) is not None}
+        everyone = (1 << setup.config.modules) - 1
+        disputed = (np.zeros(len(outs), dtype=bool) if inp["modules"] is None
+                    else np.asarray(inp["present"], dtype=bool) & ((np.asarray(inp["modules"]) & everyone) != everyone))
         for k, out in enumerate(outs):
             voted = int(inp["distance_dm"][k]) if inp["present"][k] else NO_DISTANCE
             for key, value in (("distance_dm", voted), *((key, c[k]) for key, c in twin.items())):
                 if getattr(out, key) != value:
                     return {"train": i, "cycle": k, "field": key, "core": getattr(out, key), "twin": value}, compared
-            if out.mode != NORMAL or out.module_flags or out.system_error or out.error_cycles:
+            if disputed.any():
+                if out.module_flags or out.system_error != bool(disputed[k]):
+                    return {"train": i, "cycle": k, "field": "system_error", "core": out,
+                            "twin": f"system error {bool(disputed[k])}, no module flag"}, compared
+            elif out.mode != NORMAL or out.module_flags or out.system_error or out.error_cycles:
                 return {"train": i, "cycle": k, "field": "mode", "core": out, "twin": "NORMAL, no error"}, compared
             compared += 1
     return None, compared

@@ -56,6 +56,7 @@ class Config(NamedTuple):
     # --- obstacle memory (monitor/core/memory.py, docs/supervision.md section 5)
     forget_ms: int = 7500              # fresh unanimous ABSENT this long forgets a remembered obstacle (the trade-off: docs/supervision.md 5)
     sensor_range_dm: int = 4000        # the sensors' declared range: absence counts as evidence only inside it
+    forget_single_ms: int = 1000       # the same for an obstacle only one module ever saw (issue 38: its ghosts)
 
     @property
     def modules(self) -> int:
@@ -127,11 +128,14 @@ def check(cfg: Config) -> None:
     need(0 <= cfg.distance_tolerance_dm <= 60000, "distance_tolerance_dm", "must be 0..60000 dm")
     need(1 <= cfg.forget_ms <= 600000, "forget_ms", "must be 1..600000 ms (10 min; rounded up to whole cycles)")
     need(1 <= cfg.sensor_range_dm <= 60000, "sensor_range_dm", "must be 1..60000 dm")
+    need(1 <= cfg.forget_single_ms <= 600000, "forget_single_ms", "must be 1..600000 ms (at most forget_ms counts; rounded up to whole cycles)")
 
 
-def forget_cycles(cfg: Config) -> int:
-    """Cycles of evidence that make `forget_ms`, rounded up (never forget early)."""
-    return -(-cfg.forget_ms // cfg.period_ms)
+def forget_cycles(cfg: Config, single: bool = False) -> int:
+    """Cycles of evidence that make `forget_ms` (`single`: `forget_single_ms`, for an obstacle
+    only one module ever saw, never longer than `forget_ms`), rounded up (never forget early)."""
+    ms = min(cfg.forget_single_ms, cfg.forget_ms) if single else cfg.forget_ms
+    return -(-ms // cfg.period_ms)
 
 
 def track_accel_mms2(cfg: Config) -> int:

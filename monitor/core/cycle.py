@@ -41,6 +41,7 @@ class Setup(NamedTuple):
     next: tuple
     all_seen: int
     forget_cycles: int    # evidence cycles that forget a remembered obstacle
+    forget_single: int    # the same for an obstacle only one module ever saw
     track_accel: int      # mm/s^2 the train may gain per second: traction plus the steepest downhill
 
 
@@ -65,7 +66,7 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
     if round(step_s * 1000) != cfg.period_ms:
         raise ConfigurationError(f"table was solved for a time step of {step_s} s but period_ms = {cfg.period_ms}")
     return Setup(cfg, table, model, cfg.timeout_cycles * cfg.period_ms, table.action, table.next,
-                 (1 << cfg.channels) - 1, forget_cycles(cfg), track_accel_mms2(cfg))
+                 (1 << cfg.channels) - 1, forget_cycles(cfg), forget_cycles(cfg, single=True), track_accel_mms2(cfg))
 
 
 def initial_state(setup: Setup) -> State:
@@ -171,9 +172,14 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, 0
     t_cycles, t_absent = 0, 0
     confirmed = distance != NO_DISTANCE and sys_status == PRESENT and not sys_error
+    # modules that see it with both channels: one creates the track, two (or a confirmed
+    # picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms
+    seeing = sum(statuses[2 * m] == PRESENT and statuses[2 * m + 1] == PRESENT for m in range(cfg.modules))
+    strong = state.track_strong and near != NO_TRACK
     if distance != NO_DISTANCE:
         near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
-                                              confirmed)
+                                              confirmed, seeing > 0)
+        strong = near != NO_TRACK and (strong or confirmed or seeing >= 2)
         if near == NO_TRACK:
             t_state = TRACK_NONE
         elif near == distance * UNITS_PER_DM:
@@ -184,9 +190,9 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         far -= far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
         evidence = sys_status == ABSENT and not sys_error and not stale
         t_absent, t_state = forget(state.track_absent, evidence, far <= cfg.sensor_range_dm * UNITS_PER_DM,
-                                   far < 0, setup.forget_cycles)
+                                   far < 0, setup.forget_cycles if strong else setup.forget_single)
         if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
-            near, far, t_closing, t_age = NO_TRACK, NO_TRACK, 0, 0
+            near, far, t_closing, t_age, strong = NO_TRACK, NO_TRACK, 0, 0, False
         else:
             t_cycles = _inc(state.track_cycles)
     else:
@@ -271,7 +277,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         reasons |= R_SBI
     if stale:
         reasons |= R_STALE
-    if remembered:
+    if remembered and t_state != TRACK_SEEN:
         reasons |= R_MEMORY
     if error:
         reasons |= R_SYSTEM_ERROR | (0 if train_ok else R_TRAIN_INPUT)
@@ -310,7 +316,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         near = near if near > 0 else 0
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
                       table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_cycles, t_absent,
-                      keep and speed > 0 and held > MAINTAIN)
+                      keep and speed > 0 and held > MAINTAIN, strong)
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state, r1, r2, score, risk_category(score), setup.table.risk[node])
     return new_state, out

@@ -10,6 +10,9 @@ one it ran at; issue 30 item 4). The curves supervise the nearer of
 the voted and the remembered obstacle (cycle.py), so a blind spell never lowers a demand while
 the train is inside a remembered obstacle's curve.
 
+What is remembered follows the voter's safe side, not its unanimity: a picture in which any
+module sees the obstacle with both its channels creates the track (`observe`).
+
 The track is forgotten only on positive evidence: every module reports ABSENT, fresh and
 unanimous, for `forget_ms` while the remembered position lies inside the sensors' declared
 range (`sensor_range_dm`); or the train has passed the remembered position (its least
@@ -69,23 +72,34 @@ def far_travel(speed_cms: int, error_permille: int, accel_mms2: int, period_ms: 
 
 
 def observe(near: int, far: int, closing: int, distance_dm: int, obstacle_cms: int, age_now: int,
-            confirmed: bool) -> tuple[int, int, int, int]:
+            confirmed: bool, sighted: bool) -> tuple[int, int, int, int]:
     """(near, far, closing, age) of the track after a voted obstacle at `distance_dm`; `age`
     is the age of the report the position came from when this sighting set it (0 when the
     track kept its position: its age was counted when it was moved, see `near_travel`). A
     confirmed picture (every module sees it, no flag: the 3oo3 vote) creates or replaces the
-    track; a disputed one (some channels see it, fresh ones do not) creates none, so a ghost
-    on one channel is answered while it is reported but not remembered, and only brings an
-    existing track nearer, so a farther sighting never hides a nearer remembered obstacle.
-    A receding obstacle's speed is remembered as 0 (it may stop at once).
+    track. A disputed one in which some module sees the obstacle with both its channels
+    (`sighted`: a module's 2oo2 says PRESENT; the voter's safe side, DESIGN.md section 14)
+    creates the track at the voted distance when there is none, so a module that misses the
+    obstacle does not stop the others' sighting from being remembered. Any disputed picture
+    brings an existing track nearer; a module's sighting also takes the track's position
+    when it lies between the worst-case prediction (`near`) and the last position less the
+    train's least travel (`far`): the remembered obstacle seen where it can be, so that the
+    worst case does not drift ahead of what two channels measure. Beyond `far` it never
+    moves the track, so a farther sighting never hides a nearer remembered obstacle. One
+    channel alone (its module partner disagrees) creates nothing: it is answered while it
+    is reported. A receding obstacle's speed is
+    remembered as 0 (it may stop at once).
 
     pre: 0 <= distance_dm <= 60000 and -30000 <= obstacle_cms <= 30000 and age_now >= 0
     pre: near >= -1 and closing >= 0
+    pre: sighted or not confirmed
     post: __return__[0] <= distance_dm * 10000
     post: __return__[0] == -1 or (__return__[0] >= 0 and __return__[2] >= 0 and __return__[2] >= obstacle_cms)
     post: not confirmed or __return__[:3] == (distance_dm * 10000, distance_dm * 10000, max(obstacle_cms, 0))
-    post: confirmed or near != -1 or __return__ == (-1, -1, 0, 0)
-    post: confirmed or near == -1 or (__return__[0] <= near and __return__[2] >= closing)
+    post: sighted or near != -1 or __return__ == (-1, -1, 0, 0)
+    post: not sighted or near != -1 or __return__ == (distance_dm * 10000, distance_dm * 10000, max(obstacle_cms, 0), age_now)
+    post: confirmed or near == -1 or ((__return__[0] <= near or (sighted and __return__[0] <= far)) and __return__[2] >= closing)
+    post: confirmed or near == -1 or sighted or __return__[0] <= near
     post: __return__[3] in (0, age_now) and (__return__[3] == 0 or __return__[0] == distance_dm * 10000)
     """
     d = distance_dm * UNITS_PER_DM
@@ -93,9 +107,11 @@ def observe(near: int, far: int, closing: int, distance_dm: int, obstacle_cms: i
     if confirmed:
         return d, d, own, age_now
     if near == NO_TRACK:
+        if sighted:
+            return d, d, own, age_now
         return NO_TRACK, NO_TRACK, 0, 0
     faster = own if own > closing else closing
-    if d <= near:
+    if d <= near or (sighted and d <= far):
         return d, d, faster, age_now
     return near, far, faster, 0
 

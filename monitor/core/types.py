@@ -99,6 +99,7 @@ class State(NamedTuple):
     track_cycles: int = 0        # cycles since the obstacle was last voted
     track_absent: int = 0        # cycles in a row of positive evidence that it is gone
     kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)
+    track_strong: bool = False   # the track was confirmed or seen by two modules at once: forget_ms, not forget_single_ms
 
     @property
     def latched(self) -> bool:

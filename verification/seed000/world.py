@@ -54,6 +54,7 @@ class Scenario:
     appear_offset_m: float = 50.0         # section V-B: U[(a1 + a2) / 2, (a1 + a2) / 2 + 50 m]
     phantom: float = 0.0                  # per-step phantom report with no obstacle (model1: 0.02)
     miss: float = 0.0                     # per-step missed report of a present obstacle (model1: 0.02)
+    phantom_module: bool = False          # a phantom is seen by one module (both its channels), not all six
 
     @property
     def dt(self) -> float:
@@ -83,6 +84,9 @@ LITERAL = Scenario("paper_literal", "paper as printed: 300/100 m zones, train br
                    config=PAPER_ZONES, brake_mps2=(1.0, 3.0))
 PHANTOMS = Scenario("shipped_phantoms", "shipped Config (emergency revocable) with the model's 2 % phantoms and 2 % misses",
                     phantom=0.02, miss=0.02)
+MODULE_PHANTOMS = Scenario("module_phantoms", "shipped Config with 2 % phantoms, each seen by one module only "
+                           "(both its channels; the other two report ABSENT), and 2 % misses",
+                           phantom=0.02, miss=0.02, phantom_module=True)
 PHANTOMS_HELD = Scenario("phantoms_held", "the same with emergency_release = 0 (an emergency held to standstill)",
                          config=Config(emergency_release=0), phantom=0.02, miss=0.02)
 
@@ -224,8 +228,10 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
                 m["r2_first_min"] = min(m["r2_first_min"], float(r2.min()))
                 m["r2_first_max"] = max(m["r2_first_max"], float(r2.max()))
 
-        # 3. the monitor (all six channels repeat this one perception)
-        out = vm.step(present, dist_dm, v_cms, closing_cms=v_cms)
+        # 3. the monitor (all six channels repeat this one perception; in module_phantoms a
+        #    phantom reaches one module, drawn only there so that the other worlds keep their draws)
+        modules = np.where(phantom, 1 << rng.integers(0, 3, n), 7) if sc.phantom_module else None
+        out = vm.step(present, dist_dm, v_cms, closing_cms=v_cms, modules=modules)
         demand = out["demand"]
         obs = out["observation"]
         reasons = out["reasons"]

@@ -53,6 +53,7 @@ void rg_config_default(rg_config *cfg)
     cfg->max_overruns = 3;
     cfg->distance_tolerance_dm = 100;
     cfg->forget_ms = 7500;
+    cfg->forget_single_ms = 1000;
     cfg->sensor_range_dm = 4000;
 }
 
@@ -175,6 +176,9 @@ int rg_config_check(const rg_config *c, char *msg, size_t len)
         return refuse(msg, len, "distance_tolerance_dm", c->distance_tolerance_dm, "must be 0..60000 dm");
     if (c->forget_ms < 1 || c->forget_ms > 600000)
         return refuse(msg, len, "forget_ms", c->forget_ms, "must be 1..600000 ms (10 min; rounded up to whole cycles)");
+    if (c->forget_single_ms < 1 || c->forget_single_ms > 600000)
+        return refuse(msg, len, "forget_single_ms", c->forget_single_ms,
+                      "must be 1..600000 ms (at most forget_ms counts; rounded up to whole cycles)");
     if (c->sensor_range_dm < 1 || c->sensor_range_dm > RG_MAX_DISTANCE_DM)
         return refuse(msg, len, "sensor_range_dm", c->sensor_range_dm, "must be 1..60000 dm");
     return 0;
@@ -271,15 +275,18 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->track_cycles = 0;
     s->track_absent = 0;
     s->kept = 0;
+    s->track_strong = 0;
 }
 
-/* config.py's forget_cycles: cycles of evidence that make forget_ms, rounded up (never
- * forget early). At least 1 (an accepted configuration has forget_ms >= 1, so the guard
- * never acts; EVA, which does not relate the two fields, needs it for rg_forget). */
-int32_t rg_forget_cycles(const rg_config *cfg)
+/* config.py's forget_cycles: cycles of evidence that make forget_ms (`single`: the lesser
+ * of forget_single_ms and forget_ms), rounded up (never forget early). At least 1 (an
+ * accepted configuration has both >= 1, so the guard never acts; EVA, which does not
+ * relate the fields, needs it for rg_forget). */
+int32_t rg_forget_cycles(const rg_config *cfg, int32_t single)
 {
     const int64_t period = cfg->period_ms < 1 ? 1 : cfg->period_ms;
-    const int64_t n = ((int64_t)cfg->forget_ms + period - 1) / period;
+    const int64_t ms = single && cfg->forget_single_ms < cfg->forget_ms ? cfg->forget_single_ms : cfg->forget_ms;
+    const int64_t n = (ms + period - 1) / period;
     return n < 1 ? 1 : (n > RG_MAX_COUNT ? RG_MAX_COUNT : (int32_t)n);
 }
 
@@ -875,28 +882,38 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
 }
 
 /* The track after a voted obstacle at `distance_dm`: a confirmed picture creates or
- * replaces it; a disputed one creates none and only brings an existing track nearer (a
- * farther sighting never hides a nearer remembered obstacle). A receding obstacle's speed
- * is remembered as 0. (Python: distance 0..60000; 65535 here, the voted distance's whole
- * range as EVA sees it, still fits int32 in 1e-5 m.) */
+ * replaces it; a disputed one in which some module sees the obstacle with both channels
+ * (`sighted`) creates it when there is none; any disputed one brings an existing track
+ * nearer, and a sighted one also moves it to a sighting between `near` and `far` (where the
+ * remembered obstacle can be); beyond `far` never (a farther sighting never hides a nearer
+ * remembered obstacle). A
+ * receding obstacle's speed is remembered as 0. (Python: distance 0..60000; 65535 here,
+ * the voted distance's whole range as EVA sees it, still fits int32 in 1e-5 m.) */
 /*@ requires \valid(track);
     requires 0 <= distance_dm <= 65535;
     requires track->near >= -1 && track->closing_cms >= 0;
+    requires confirmed == 0 || sighted != 0;
     assigns *track;
     ensures track->near <= distance_dm * 10000;
     ensures track->near == -1 || (track->near >= 0 && track->closing_cms >= 0 && track->closing_cms >= obstacle_cms);
     ensures confirmed != 0 ==> track->near == distance_dm * 10000 && track->far == distance_dm * 10000
                                && track->closing_cms == \max(obstacle_cms, 0) && track->age_ms == age_now;
-    ensures confirmed == 0 && \old(track->near) == -1 ==>
+    ensures sighted != 0 && \old(track->near) == -1 ==>
+            track->near == distance_dm * 10000 && track->far == distance_dm * 10000
+            && track->closing_cms == \max(obstacle_cms, 0) && track->age_ms == age_now;
+    ensures sighted == 0 && \old(track->near) == -1 ==>
             track->near == -1 && track->far == -1 && track->closing_cms == 0 && track->age_ms == 0;
     ensures confirmed == 0 && \old(track->near) != -1 ==>
-            track->near <= \old(track->near) && track->closing_cms >= \old(track->closing_cms);
+            (track->near <= \old(track->near) || (sighted != 0 && track->near <= \old(track->far)))
+            && track->closing_cms >= \old(track->closing_cms);
+    ensures confirmed == 0 && sighted == 0 && \old(track->near) != -1 ==> track->near <= \old(track->near);
 */
-void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed)
+void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed,
+                int32_t sighted)
 {
     const int32_t d = distance_dm * RG_UNITS_PER_DM;
     const int32_t own = obstacle_cms > 0 ? obstacle_cms : 0;
-    if (confirmed) {
+    if (confirmed || (sighted && track->near == RG_NO_TRACK)) {
         track->near = d;
         track->far = d;
         track->closing_cms = own;
@@ -907,7 +924,7 @@ void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int3
         track->age_ms = 0;
     } else {
         if (own > track->closing_cms) track->closing_cms = own;
-        if (d <= track->near) {
+        if (d <= track->near || (sighted && d <= track->far)) {
             track->near = d;
             track->far = d;
             track->age_ms = age_now;
@@ -1027,7 +1044,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     /* the age limit: timeout_ticks itself for an accepted configuration */
     const int64_t age_limit = timeout_ticks < RG_MAX_AGE_MS ? timeout_ticks : RG_MAX_AGE_MS;
     const uint32_t all_seen = (1u << channels) - 1u;
-    const int32_t forget_cycles = rg_forget_cycles(cfg);
+    const int32_t forget_cycles = rg_forget_cycles(cfg, 0);
+    const int32_t forget_single = rg_forget_cycles(cfg, 1);
     /* mm/s^2 the train may gain: traction plus the steepest downhill (cycle.Setup.track_accel) */
     const int64_t track_accel = (int64_t)cfg->max_accel_mms2 + rg_gradient_accel_mms2(cfg->max_gradient_permille);
     const int64_t err = cfg->speed_error_permille;
@@ -1036,7 +1054,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, keep;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, sighted, strong, keep;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
     int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
@@ -1131,8 +1149,15 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     trk.closing_cms = s->track_closing;
     trk.age_ms = 0;          /* a remembered position's age was counted when it was moved */
     confirmed = present && sys_status == RG_PRESENT && !sys_error;
+    /* modules that see it with both channels: one creates the track, two (or a confirmed
+     * picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms */
+    sighted = 0;
+    for (m = 0; m < modules; m++)
+        if (statuses[2 * m] == RG_PRESENT && statuses[2 * m + 1] == RG_PRESENT) sighted++;
+    strong = s->track_strong && trk.near != RG_NO_TRACK;
     if (present) {
-        rg_observe(&trk, distance, toward - own_speed, age, confirmed);
+        rg_observe(&trk, distance, toward - own_speed, age, confirmed, sighted > 0);
+        strong = trk.near != RG_NO_TRACK && (strong || confirmed || sighted >= 2);
         if (trk.near == RG_NO_TRACK) {
             t_state = RG_TRACK_NONE;
         } else if (trk.near == (int64_t)distance * 10000) {
@@ -1144,8 +1169,10 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     } else if (trk.near != RG_NO_TRACK) {
         const int64_t far = (int64_t)trk.far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
         const int32_t evidence = sys_status == RG_ABSENT && !sys_error && !stale;
-        t_absent = rg_forget(s->track_absent, evidence, far, cfg->sensor_range_dm, forget_cycles, &t_state);
+        t_absent = rg_forget(s->track_absent, evidence, far, cfg->sensor_range_dm,
+                             strong ? forget_cycles : forget_single, &t_state);
         if (t_state == RG_TRACK_FORGOTTEN || t_state == RG_TRACK_PASSED) {
+            strong = 0;
             trk.near = RG_NO_TRACK;
             trk.far = RG_NO_TRACK;
             trk.closing_cms = 0;
@@ -1246,7 +1273,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     if (env == RG_EMERGENCY) reasons |= RG_R_ENVELOPE;
     else if (env == RG_SERVICE) reasons |= RG_R_SBI;
     if (stale) reasons |= RG_R_STALE;
-    if (remembered) reasons |= RG_R_MEMORY;
+    if (remembered && t_state != RG_TRACK_SEEN) reasons |= RG_R_MEMORY;
     if (error) {
         reasons |= RG_R_SYSTEM_ERROR | (train_ok ? 0 : RG_R_TRAIN_INPUT);
         if (dispute) {
@@ -1292,6 +1319,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->track_cycles = t_cycles;
     s->track_absent = t_absent;
     s->kept = keep && speed > 0 && held > RG_MAINTAIN;
+    s->track_strong = strong;
 
     out->demand = final_demand;
     out->reasons = reasons;

@@ -139,6 +139,7 @@ typedef struct {
     /* obstacle memory */
     int32_t forget_ms;              /* fresh unanimous ABSENT this long forgets a remembered obstacle */
     int32_t sensor_range_dm;        /* absence counts as evidence only inside the sensors' declared range */
+    int32_t forget_single_ms;       /* the same as forget_ms for an obstacle only one module ever saw */
 } rg_config;
 
 /* A table file's bytes, checked by rg_table_check before the first step. */
@@ -174,6 +175,7 @@ typedef struct {
     int32_t track_cycles;   /* cycles since the obstacle was last voted */
     int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
     int32_t kept;           /* an obstacle in sight and closing keeps what is held (keep_held) */
+    int32_t track_strong;   /* confirmed or seen by two modules at once: forget_ms, not forget_single_ms */
 } rg_state;
 
 /* The remembered obstacle as rg_observe updates it (the track_* fields of rg_state). */
@@ -309,10 +311,11 @@ int64_t rg_accel_run(int64_t accel_mms2, int64_t period_ms);
 int64_t rg_near_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t obstacle_cms,
                        int64_t period_ms);
 int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_mms2, int64_t period_ms);
-void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed);
+void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int32_t age_now, int32_t confirmed,
+                int32_t sighted);
 int32_t rg_forget(int32_t cycles_absent, int32_t evidence, int64_t far, int32_t range_dm, int32_t forget_cycles,
                   int32_t *state);
 int32_t rg_track_dm(int32_t near);
-int32_t rg_forget_cycles(const rg_config *cfg);
+int32_t rg_forget_cycles(const rg_config *cfg, int32_t single);
 
 #endif

@@ -54,6 +54,7 @@ static void any_config(rg_config *c)
     c->distance_tolerance_dm = Frama_C_interval(0, 60000);
     c->forget_ms = Frama_C_interval(1, 600000);
     c->sensor_range_dm = Frama_C_interval(1, 60000);
+    c->forget_single_ms = Frama_C_interval(1, 600000);
 }
 
 static void shipped_table(rg_table *t)
