@@ -892,7 +892,6 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
 /*@ requires \valid(track);
     requires 0 <= distance_dm <= 65535;
     requires track->near >= -1 && track->closing_cms >= 0;
-    requires confirmed == 0 || sighted != 0;
     assigns *track;
     ensures track->near <= distance_dm * 10000;
     ensures track->near == -1 || (track->near >= 0 && track->closing_cms >= 0 && track->closing_cms >= obstacle_cms);
@@ -901,7 +900,7 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
     ensures sighted != 0 && \old(track->near) == -1 ==>
             track->near == distance_dm * 10000 && track->far == distance_dm * 10000
             && track->closing_cms == \max(obstacle_cms, 0) && track->age_ms == age_now;
-    ensures sighted == 0 && \old(track->near) == -1 ==>
+    ensures confirmed == 0 && sighted == 0 && \old(track->near) == -1 ==>
             track->near == -1 && track->far == -1 && track->closing_cms == 0 && track->age_ms == 0;
     ensures confirmed == 0 && \old(track->near) != -1 ==>
             (track->near <= \old(track->near) || (sighted != 0 && track->near <= \old(track->far)))
