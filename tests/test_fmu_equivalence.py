@@ -125,7 +125,8 @@ def draw_config(b: Bytes) -> dict:
          "warning_ms": b.pick([0, 2000, b.u16() % 60001]),
          # the obstacle memory: forget_ms not a whole number of cycles now and then (rounded up)
          "forget_ms": b.pick([100, 101, 199, 300, 500, 1000, 5000, 1 + b.u16() % 3000]),
-         "sensor_range_dm": b.pick([4000, 4000, 500, 60000, 1 + b.u16() % 60000])}
+         "sensor_range_dm": b.pick([4000, 4000, 500, 60000, 1 + b.u16() % 60000]),
+         "forget_single_ms": b.pick([1000, 100, 250, 1 + b.u16() % 6000])}
     p.update(draw_declaration(b))
     check(config_from_parameters(p))      # the generator only makes valid configurations
     return p
@@ -338,6 +339,32 @@ def memory_steps(b: Bytes, cfg) -> list:
     return steps + [(c, 1) for c in cycles]
 
 
+def module_memory_steps(b: Bytes, cfg) -> list:
+    """Issue 38 item 1: one module or two see an obstacle that the others dispute (a track
+    created by a disputed picture, weak or strong), now and then seen again by one module
+    between the worst-case prediction and the last position (the gate), then blind cycles
+    for forget_single_ms's or forget_ms's cycles - 1, + 0 or + 1."""
+    speed = b.pick([0, 1 + b.u16() % 4000, 1 + b.u16() % 12000])
+    v = speed_mps(speed)
+    d = b.u16() % (min(cfg.sensor_range_dm, MAX_DISTANCE_DM) + 1)
+    seen = ChannelInput(1, metres(d), closing_mps(speed), 0, True)
+    first = b.u8() % (2 * cfg.modules)
+    chans = _module_sees([CLEAR] * CHANNELS, first, seen)
+    if cfg.modules == 3 and b.u8() % 3 == 0:              # a second module: a strong track
+        chans = _module_sees(chans, (first + 2) % 6, seen)
+    steps = [(StepInput(tuple(chans), v), 1)]
+    if b.u8() % 3 == 0:                                   # seen again where the track can be
+        err = cfg.speed_error_permille
+        accel = cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille)
+        travel_dm = near_travel(speed, err, accel, 0, cfg.period_ms) // UNITS_PER_DM
+        again = max(0, d - b.u16() % (travel_dm + 2))
+        steps.append((StepInput(tuple(_module_sees([CLEAR] * CHANNELS, first, seen._replace(distance=metres(again)))),
+                                v), 1))
+    n = b.pick([forget_cycles(cfg, single=True)] * 2 + [forget_cycles(cfg)]) + b.pick([-1, 0, 0, 1])
+    blind = StepInput((CLEAR,) * CHANNELS, b.pick([v, 0.0]))
+    return steps + [(blind, 1)] * max(1, min(n, 80))
+
+
 def flapping_steps(b: Bytes, cfg) -> list:
     """One channel drops the obstacle now and then while its partner keeps it, with calm
     spells shorter than `persistence_cycles` (the disagreement adds up to a perceptor
@@ -392,7 +419,7 @@ def table_hold_steps(b: Bytes, cfg) -> list:
 
 # the blocks a sequence is made of, each as often as its weight says (one byte picks one)
 BLOCK_WEIGHTS = ((random_step, 4), (edge_steps, 3), (release_steps, 1), (memory_steps, 3), (flapping_steps, 1),
-                 (service_release_steps, 2), (table_hold_steps, 1))
+                 (service_release_steps, 2), (table_hold_steps, 2), (module_memory_steps, 3))
 BLOCKS = tuple(block for block, weight in BLOCK_WEIGHTS for _ in range(weight))
 
 
@@ -451,6 +478,20 @@ def coverage_probe(seen: Counter, setup):
         seen["track 1 dm beyond the sensor range"] += (out.track_state == TRACK_HELD and evidence
                                                        and after.track_far == range_units + UNITS_PER_DM)
         seen["track passed"] += out.track_state == TRACK_PASSED
+        # issue 38 item 1: what any module saw
+        seen["track created by a disputed picture"] += (before.track_near == NO_TRACK and out.track_state == TRACK_SEEN
+                                                        and out.system_error)
+        seen["weak track made strong by a second module"] += (before.track_near != NO_TRACK and not before.track_strong
+                                                              and after.track_strong)
+        weak_n = setup.forget_single
+        seen["weak track forgotten after exactly forget_single_ms"] += (
+            out.track_state == TRACK_FORGOTTEN and not before.track_strong and before.track_absent == weak_n - 1
+            and weak_n < setup.forget_cycles)
+        seen["weak track one cycle short of forgotten"] += (out.track_state == TRACK_CONFIRMING and not after.track_strong
+                                                            and after.track_absent == weak_n - 1)
+        seen["a module's sighting between near and far took the track"] += (
+            before.track_near != NO_TRACK and out.system_error and out.track_state == TRACK_SEEN
+            and out.distance_dm * UNITS_PER_DM > before.track_near)
         seen["disputed farther sighting kept the track"] += (out.distance_dm != NO_DISTANCE
                                                              and out.reasons & R_MEMORY != 0)
         seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
@@ -535,7 +576,11 @@ EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance 
          "evidence broken by a stale cycle", "evidence broken by a dispute", "track beyond the sensor range kept",
          "track exactly at the sensor range", "track 1 dm beyond the sensor range", "track passed",
          "disputed farther sighting kept the track", "table demand held", "perceptor error by a flapping channel",
-         "disagreement cleared by a calm spell", "service held then released after exactly release_confirm_cycles")
+         "disagreement cleared by a calm spell", "service held then released after exactly release_confirm_cycles",
+         # what any module saw is remembered (issue 38 item 1)
+         "track created by a disputed picture", "weak track made strong by a second module",
+         "weak track forgotten after exactly forget_single_ms", "weak track one cycle short of forgotten",
+         "a module's sighting between near and far took the track")
 KINDS = ("band 2 on", "band 3 on", "one band", "release at standstill", "revocable release", "gradient > 0",
          "slippery < 1000", "2oo2", "speed error > 0", "FMU start values")
 

@@ -21,12 +21,13 @@ import pytest
 from monitor.core.braking import curves, ebi_dm
 from monitor.core.config import Config, forget_cycles
 from monitor.core.cycle import initial_state, step
-from monitor.core.memory import accel_run, far_travel, forget, near_travel, observe
+from monitor.core.memory import UNITS_PER_DM, accel_run, far_travel, forget, near_travel, observe
 from monitor.core.types import (
-    DEGRADED, EMERGENCY, INIT, MAINTAIN, NORMAL, PRESENT, R_LATCH, R_MEMORY, SERVICE, STATIC, TRACK_CONFIRMING,
-    TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED, TRACK_SEEN, Inputs, Report, State, Train,
+    ABSENT, DEGRADED, EMERGENCY, INIT, MAINTAIN, NO_DISTANCE, NORMAL, PRESENT, R_DISPUTE, R_LATCH, R_MEMORY, SERVICE,
+    STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Report, State,
+    Train,
 )
-from tests.test_core_cycle import clear, normal_driver, present, with_channel
+from tests.test_core_cycle import M1, M2, clear, normal_driver, present, with_channel
 
 U = 10000                 # 1e-5 m per dm (memory.UNITS_PER_DM), written out
 V = 3000                  # 30 m/s
@@ -394,3 +395,88 @@ def test_the_safe_stop_fallback_reports_no_track():
     d = normal_driver(Config())
     state, out = step(d.setup, d.state, None, d.tick)
     assert (out.track_dm, out.track_cycles, out.track_state) == (65535, 0, 0)
+
+
+# --- issue 38 item 1: what any module saw is remembered
+
+def seen_by(tick: int, distance: int, modules: tuple) -> tuple:
+    """Both channels of each module in `modules` see an obstacle at `distance`; the others ABSENT."""
+    return tuple(Report(PRESENT, distance, 0, STATIC, tick) if i // 2 in modules else Report(ABSENT, 0, 0, STATIC, tick)
+                 for i in range(6))
+
+
+def test_two_modules_seeing_what_the_third_disputes_create_a_strong_track_held_for_forget_ms():
+    cfg = Config()
+    d = normal_driver(cfg, M1)
+    out = d.cycle(seen_by(d.tick, 1500, (1, 2)), 0)
+    assert out.system_error and out.reasons & R_DISPUTE
+    assert out.track_state == TRACK_SEEN and out.track_dm == 1500 and not out.reasons & R_MEMORY
+    assert d.state.track_strong
+    for k in range(forget_cycles(cfg) - 1):                  # blind: evidence, but not enough
+        out = d.clear(0)
+        assert out.track_state == TRACK_CONFIRMING and out.reasons & R_MEMORY, k
+    assert d.clear(0).track_state == TRACK_FORGOTTEN
+
+
+def test_one_module_alone_creates_a_weak_track_forgotten_after_forget_single_ms():
+    cfg = Config(forget_single_ms=350)                       # 4 cycles (rounded up)
+    n = forget_cycles(cfg, single=True)
+    assert n == 4 and forget_cycles(cfg) == 75
+    d = normal_driver(cfg, M1)
+    out = d.cycle(seen_by(d.tick, 1500, (2,)), 0)
+    assert out.track_state == TRACK_SEEN and out.track_dm == 1500 and not d.state.track_strong
+    for k in range(n - 1):
+        assert d.clear(0).track_state == TRACK_CONFIRMING, k
+    out = d.clear(0)
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == NO_DISTANCE
+    # forget_single_ms never makes a track last longer than forget_ms
+    assert forget_cycles(Config(forget_ms=200, forget_single_ms=5000), single=True) == 2
+
+
+def test_one_channel_alone_creates_nothing_and_a_second_module_makes_a_weak_track_strong():
+    cfg = Config(forget_single_ms=100)
+    d = normal_driver(cfg, M1)
+    out = d.cycle(tuple(Report(PRESENT, 1500, 0, STATIC, d.tick) if i == 4 else Report(ABSENT, 0, 0, STATIC, d.tick)
+                        for i in range(6)), 0)
+    assert out.track_state == TRACK_NONE                     # module 2 split: its 2oo2 does not see it
+    d.cycle(seen_by(d.tick, 1500, (0,)), 0)
+    assert not d.state.track_strong
+    d.cycle(seen_by(d.tick, 1500, (0, 1)), 0)
+    assert d.state.track_strong
+    for _ in range(5):                                       # now held for forget_ms, not 100 ms
+        assert d.clear(0).track_state == TRACK_CONFIRMING
+
+
+def test_a_module_s_sighting_where_the_track_can_be_takes_its_position_one_beyond_does_not():
+    """At 30 m/s the worst-case prediction runs ahead of the last position (near < far); a
+    sighting in between is the remembered obstacle seen where it can be."""
+    d = normal_driver(Config(), M2)
+    d.cycle(seen_by(d.tick, 30000, (1, 2)), 3000)
+    near, far = d.state.track_near, d.state.track_far
+    assert near < far == 30000 * UNITS_PER_DM
+    out = d.cycle(seen_by(d.tick, 30000, (1, 2)), 3000)     # at far: taken
+    assert out.track_state == TRACK_SEEN and out.track_dm == 30000
+    d.cycle(seen_by(d.tick, 29800, (1, 2)), 3000)
+    out = d.cycle(seen_by(d.tick, 29801, (1, 2)), 3000)     # one dm beyond far: kept
+    assert out.track_state == TRACK_HELD and out.track_dm < 29800 and out.reasons & R_MEMORY
+
+
+def test_in_the_2oo2_topology_the_confirmed_single_module_is_strong_its_distance_dispute_weak():
+    cfg = Config(topology="2oo2", forget_single_ms=100)
+    d = normal_driver(cfg, M1)
+    d.cycle(present(d.tick, 1500, n=2), 0)
+    assert d.state.track_strong
+    d = normal_driver(cfg, M1)
+    d.cycle((Report(PRESENT, 1500, 0, STATIC, d.tick), Report(PRESENT, 1500 + cfg.distance_tolerance_dm + 1, 0, STATIC,
+                                                                d.tick)), 0)
+    assert d.state.track_far == 1500 * UNITS_PER_DM and not d.state.track_strong
+
+
+def test_a_strong_track_seen_later_by_one_module_alone_stays_strong():
+    cfg = Config(forget_single_ms=100)
+    d = normal_driver(cfg, M1)
+    d.cycle(seen_by(d.tick, 1500, (0, 1)), 0)
+    d.cycle(seen_by(d.tick, 1500, (2,)), 0)
+    assert d.state.track_strong
+    for _ in range(5):
+        assert d.clear(0).track_state == TRACK_CONFIRMING

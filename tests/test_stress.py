@@ -21,6 +21,7 @@ from fmu.scenario import load as load_cosim
 from monitor.core.config import Config
 from verification import stress as st
 from verification import world_train as wt
+from verification.stress.module_miss import memory_rule
 
 ENC = st.ENCOUNTERS["edge-30"]
 CORNER = wt.corners(Config())[0]
@@ -120,6 +121,53 @@ def test_the_found_failure_a_blackout_during_emergency_braking_is_now_survived(m
     assert not st.closed_loop(model, ENC, longer, CORNER)["failure"]
     forgetful = st.closed_loop(model, ENC, longer, CORNER, Config(forget_ms=100))
     assert model == "m1" or forgetful["failure"] and forgetful["collision"] and forgetful["released"] and not forgetful["unavoidable"]
+
+
+def test_a_module_misses_one_encounter_in_a_hundred_and_its_likelihood_says_so():
+    """Issue 38: a module whose two channels never see this obstacle, per encounter and module
+    with P_MODULE_MISS; a disturbance written before module misses existed has none."""
+    ds = st.NOMINAL.sample(np.random.default_rng(3), 6000)
+    share = np.mean([d.module for d in ds])
+    assert share == pytest.approx(st.P_MODULE_MISS, rel=0.2)
+    d = st.Disturbance.none()
+    d.module[1] = True
+    p = st.P_MODULE_MISS
+    assert d.log_likelihood() == pytest.approx(math.log(p) - math.log1p(-p), abs=1e-9)
+    assert d.count() == 1 and d.cut(5).module[1] and d.events(100)[0]["kind"] == "module_miss"
+    assert st.Disturbance.from_lists(d.as_lists()).module.tolist() == [False, True, False]
+    old = {k: v for k, v in d.as_lists().items() if k != "module"}
+    assert not st.Disturbance.from_lists(old).module.any()
+
+
+def test_a_module_that_never_sees_the_obstacle_and_a_blindness_during_the_braking_are_survived():
+    """Module 0 never sees the edge-30 object and every channel is blind for 3 s from 2 s into
+    the braking: the memory holds what the other two modules saw and the train stops about as
+    far from the object as undisturbed. With the memory of before issue 38 (only a confirmed
+    picture creates a track) the emergency is released and the train collides."""
+    d = st.Disturbance.none()
+    d.module[0] = True
+    d.blind[20:50] = True
+    calm = st.closed_loop("m2", ENC, st.Disturbance.none(), CORNER)
+    res = st.closed_loop("m2", ENC, d, CORNER)
+    assert not res["failure"] and not res["released"] and abs(res["closest_m"] - calm["closest_m"]) < 1.0
+    with memory_rule("before-issue-38"):
+        before = st.closed_loop("m2", ENC, d, CORNER)
+    assert before["failure"] and before["collision"] and before["released"] and not before["unavoidable"]
+    assert not st.closed_loop("m2", ENC, d, CORNER)["failure"]                # the shipped rule is back
+
+
+def test_the_module_miss_estimate_as_users_run_it():
+    out = subprocess.run([sys.executable, "-m", "verification.stress.module_miss", "--runs", "6", "--json"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)["rows"]
+    assert [r["memory"] for r in rows] == ["shipped", "before-issue-38"]
+    for r in rows:
+        assert r["runs"] == 6 and 0 <= r["failures"] <= 6 and r["ci95"][0] <= r["p_given_module_miss"] <= r["ci95"][1]
+        assert r["p_some_module_misses"] == pytest.approx(1 - (1 - st.P_MODULE_MISS) ** 3)
+    bad = subprocess.run([sys.executable, "-m", "verification.stress.module_miss", "--runs", "0"],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "--runs" in bad.stderr
 
 
 def test_a_failure_replays_from_its_candump_log(tmp_path):

@@ -175,11 +175,11 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # modules that see it with both channels: one creates the track, two (or a confirmed
     # picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms
     seeing = sum(statuses[2 * m] == PRESENT and statuses[2 * m + 1] == PRESENT for m in range(cfg.modules))
-    strong = state.track_strong and near != NO_TRACK
+    strong = state.track_strong                     # (only ever set with a track)
     if distance != NO_DISTANCE:
         near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
                                               confirmed, seeing > 0)
-        strong = near != NO_TRACK and (strong or confirmed or seeing >= 2)
+        strong = strong or confirmed or seeing >= 2  # (a sighting that creates nothing is neither)
         if near == NO_TRACK:
             t_state = TRACK_NONE
         elif near == distance * UNITS_PER_DM:
@@ -192,7 +192,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         t_absent, t_state = forget(state.track_absent, evidence, far <= cfg.sensor_range_dm * UNITS_PER_DM,
                                    far < 0, setup.forget_cycles if strong else setup.forget_single)
         if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
-            near, far, t_closing, t_age, strong = NO_TRACK, NO_TRACK, 0, 0, False
+            near, far, t_closing, strong = NO_TRACK, NO_TRACK, 0, False
         else:
             t_cycles = _inc(state.track_cycles)
     else:

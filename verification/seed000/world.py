@@ -55,6 +55,7 @@ class Scenario:
     phantom: float = 0.0                  # per-step phantom report with no obstacle (model1: 0.02)
     miss: float = 0.0                     # per-step missed report of a present obstacle (model1: 0.02)
     phantom_module: bool = False          # a phantom is seen by one module (both its channels), not all six
+    module0_range_m: float = 0.0          # > 0: module 0 sees only this far (a shorter-ranged module; issue 38 item 4)
 
     @property
     def dt(self) -> float:
@@ -155,6 +156,7 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
     has = np.zeros(n, dtype=bool)
     d = np.zeros(n)
     prev_demand = np.zeros(n, dtype=np.int64)
+    split_run = np.zeros(n, dtype=np.int64)
     ret = np.zeros(n)
     obst_steps = np.zeros(n, dtype=np.int64)
     trace = {k: np.zeros((steps, rec), dtype=bool if k == "present" else np.int64) for k in TRACE_KEYS}
@@ -166,7 +168,7 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
                         "fn_steps", "fn_base", "perc_worse", "perc_better", "onsets", "false_onsets",
                         "onsets_no_obstacle", "stopped_steps", "service_steps", "emergency_steps",
                         "brake_no_obstacle", "noise_n", "phantoms", "misses", "held_standstill", "stops",
-                        "stops_no_obstacle")}
+                        "stops_no_obstacle", "dispute_cycles", "disputes_persisting")}
     m.update(zone_true=np.zeros(4, dtype=np.int64), zone_obs=np.zeros(4, dtype=np.int64),
              reward_paper=0.0, reward_model=0.0, distance_m=0.0, appear_min=math.inf, appear_max=-math.inf,
              appear_sum=0.0, noise_sum=0.0, noise_sq=0.0, r1_first_max=0.0, r2_first_sum=0.0,
@@ -231,10 +233,17 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
         # 3. the monitor (all six channels repeat this one perception; in module_phantoms a
         #    phantom reaches one module, drawn only there so that the other worlds keep their draws)
         modules = np.where(phantom, 1 << rng.integers(0, 3, n), 7) if sc.phantom_module else None
+        if sc.module0_range_m > 0:           # module 0 does not see beyond its shorter range
+            modules = np.where(present & (dist_dm > sc.module0_range_m * 10), 6, 7 if modules is None else modules)
         out = vm.step(present, dist_dm, v_cms, closing_cms=v_cms, modules=modules)
         demand = out["demand"]
         obs = out["observation"]
         reasons = out["reasons"]
+        # a dispute between modules persisting persistence_cycles while the train moves: what
+        # would escalate to SAFE_STOP if module splits escalated as in-module ones do
+        split_run = np.where(out["dispute"] & (v_cms > 0), split_run + 1, 0)
+        m["dispute_cycles"] += int(out["dispute"].sum())
+        m["disputes_persisting"] += int((split_run == cfg.persistence_cycles).sum())
 
         # 4. bookkeeping of this step (state before moving)
         braking = demand > 0

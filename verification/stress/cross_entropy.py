@@ -55,9 +55,12 @@ def _refit(proposal: Proposal, elites: list[Disturbance], cycles: np.ndarray, we
     blind = np.stack([e.blind for e in elites]).astype(float)
     prev = np.concatenate([np.zeros((len(elites), 1)), blind[:, :-1]], axis=1)
     p = {**proposal.p, "blind": fit(blind, 1 - prev, proposal.p["blind"])}
+    # a module's miss (per encounter) refitted like the blindness's start: the share of the
+    # weighted elites that have it
+    module = blend(w @ np.stack([e.module for e in elites]).astype(float), proposal.module)
     # the noise keeps its nominal spread and mean: it moves the voted distance by a few
     # sigmas (1 to 2 m) against margins of metres
-    return Proposal(p, proposal.mu, fit(blind, prev, proposal.stays))
+    return Proposal(p, proposal.mu, fit(blind, prev, proposal.stays), module)
 
 
 def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin_m: float,
@@ -73,7 +76,8 @@ def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin
         return r["failure"] and (r["released"] or not released)
 
     best = d.copy()
-    for kinds in (("z",), KINDS[1:]):  # most failures need neither the noise nor any one channel's events
+    # most failures need neither the noise, nor any one channel's events, nor a module's miss
+    for kinds in (("z",), KINDS[1:], ("module",)):
         quiet = best.copy()
         for kind in kinds:
             getattr(quiet, kind)[:] = 0
@@ -82,7 +86,7 @@ def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin
     changed = True
     while changed:
         changed = False
-        for kind in ("ghost", "drop", "miss", "blind"):         # the likeliest events are kept longest
+        for kind in ("ghost", "drop", "miss", "module", "blind"):   # the likeliest events are kept longest
             for where in np.argwhere(getattr(best, kind)):
                 trial = best.copy()
                 getattr(trial, kind)[tuple(where)] = False

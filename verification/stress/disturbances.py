@@ -24,6 +24,12 @@ BETA (the common-cause share of those misses, IEC 61508-6 annex D):
 The chain starts in its stationary distribution (blind at the appearance with P_BLIND, the
 weather does not wait for the obstacle), so every cycle of the window is blind with P_BLIND
 and every channel misses with P_MISS (tests/test_stress.py samples it).
+
+A module-level miss (issue 38): a module whose two channels never see this obstacle (a
+shorter range, another sensor kind, an object its kind does not detect), per encounter and
+module with P_MODULE_MISS. Sensors of different range and kind disagree normally; the rate
+is this model's assumption, not a measurement (seed 002 gives none): 1 % per module and
+encounter. It is the case the memory's "any module that saw it" rule exists for.
 """
 from __future__ import annotations
 
@@ -45,6 +51,8 @@ P_BLIND = BETA * P_MISS   # stationary share of the cycles in which every channe
 DISTURBANCES = {"blind": P_BLIND * (1 - BLIND_STAYS) / (1 - P_BLIND), "miss": (P_MISS - P_BLIND) / (1 - P_BLIND),
                 "drop": 0.001, "ghost": 0.001}
 EXPLORE = 0.05            # the search's first proposal: a common-cause blindness begins this likely
+MODULES = CHANNELS // 2
+P_MODULE_MISS = 0.01      # a module never sees this obstacle (per encounter and module; issue 38)
 
 
 KINDS = tuple(DISTURBANCES)
@@ -60,13 +68,18 @@ class Disturbance:
     drop: np.ndarray
     ghost: np.ndarray
     z: np.ndarray             # (WINDOW, 6) distance noise in standard deviations
+    module: np.ndarray = None  # (3,): module m never sees the obstacle (None: no module misses)
+
+    def __post_init__(self):
+        if self.module is None:
+            self.module = np.zeros(MODULES, dtype=bool)
 
     @staticmethod
     def none() -> "Disturbance":
         return Disturbance(*(np.zeros(SHAPES[k], dtype=bool) for k in KINDS), np.zeros((WINDOW, CHANNELS)))
 
     def copy(self) -> "Disturbance":
-        return Disturbance(*(getattr(self, k).copy() for k in KINDS), self.z.copy())
+        return Disturbance(*(getattr(self, k).copy() for k in KINDS), self.z.copy(), self.module.copy())
 
     def cut(self, cycles: int) -> "Disturbance":
         """Undisturbed from cycle `cycles` on (a run that read only `cycles` cycles of the
@@ -74,10 +87,10 @@ class Disturbance:
         out = self.copy()
         for k in (*KINDS, "z"):
             getattr(out, k)[cycles:] = 0
-        return out
+        return out                    # (a module's miss holds from the start: every run read it)
 
     def count(self) -> int:
-        return int(sum(getattr(self, k).sum() for k in KINDS))
+        return int(sum(getattr(self, k).sum() for k in KINDS)) + int(self.module.sum())
 
     def log_likelihood(self) -> float:
         """Nominal log-likelihood relative to the undisturbed sequence (no event, no noise)."""
@@ -89,7 +102,8 @@ class Disturbance:
 
     def events(self, period_ms: int) -> list[dict]:
         """The disturbances as a list (noise listed where it exceeds 2 sigma)."""
-        out = []
+        out = [{"cycle": 0, "t_after_appearance_s": 0.0, "channel": f"module {m}", "kind": "module_miss"}
+               for m in np.nonzero(self.module)[0]]
         for j in range(WINDOW):
             if self.blind[j]:
                 out.append({"cycle": j, "t_after_appearance_s": j * period_ms / 1000.0, "channel": "all",
@@ -105,16 +119,18 @@ class Disturbance:
         return out
 
     def as_lists(self) -> dict:
-        return {**{k: getattr(self, k).astype(int).tolist() for k in KINDS}, "z": np.round(self.z, 6).tolist()}
+        return {**{k: getattr(self, k).astype(int).tolist() for k in KINDS}, "z": np.round(self.z, 6).tolist(),
+                "module": self.module.astype(int).tolist()}
 
     @staticmethod
     def from_lists(data: dict) -> "Disturbance":
         """From `as_lists`; a sequence shorter than WINDOW (written with a shorter window) is
-        undisturbed after its end."""
+        undisturbed after its end; one written before module misses has none."""
         arrays = [np.array(data[k], dtype=bool) for k in KINDS] + [np.array(data["z"], dtype=float)]
         if len(arrays[0]) > WINDOW:
             raise ValueError(f"a disturbance of {len(arrays[0])} cycles, longer than the window of {WINDOW}")
-        return Disturbance(*(np.concatenate([a, np.zeros((WINDOW - len(a), *a.shape[1:]), a.dtype)]) for a in arrays))
+        return Disturbance(*(np.concatenate([a, np.zeros((WINDOW - len(a), *a.shape[1:]), a.dtype)]) for a in arrays),
+                           np.array(data.get("module", [0] * MODULES), dtype=bool))
 
 
 @dataclass
@@ -126,6 +142,11 @@ class Proposal:
     p: dict                   # kind -> probabilities of shape SHAPES[kind]
     mu: np.ndarray            # (WINDOW, 6) noise means, in sigmas
     stays: np.ndarray         # (WINDOW,) probability that a blindness goes on into cycle j
+    module: np.ndarray = None  # (3,) probability that module m never sees the obstacle
+
+    def __post_init__(self):
+        if self.module is None:
+            self.module = np.full(MODULES, P_MODULE_MISS)
 
     @staticmethod
     def nominal() -> "Proposal":
@@ -139,7 +160,8 @@ class Proposal:
         """The search's first proposal: blindness (the one event that hides an obstacle from
         every channel at once) begins with EXPLORE in every cycle; the per-channel events
         start at their nominal rates (six independent misses in one cycle are 1e-8 likely)."""
-        return Proposal({**self.p, "blind": np.maximum(self.p["blind"], EXPLORE)}, self.mu.copy(), self.stays.copy())
+        return Proposal({**self.p, "blind": np.maximum(self.p["blind"], EXPLORE)}, self.mu.copy(), self.stays.copy(),
+                        self.module.copy())
 
     def blind_chains(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """n runs of the blindness chain over the window, (n, WINDOW)."""
@@ -154,7 +176,8 @@ class Proposal:
         blind = self.blind_chains(rng, n)
         ev = [rng.random((n, *SHAPES[k])) < self.p[k] for k in KINDS[1:]]
         z = self.mu + rng.standard_normal((n, WINDOW, CHANNELS))
-        return [Disturbance(blind[i], *(e[i] for e in ev), z[i]) for i in range(n)]
+        module = rng.random((n, MODULES)) < self.module          # drawn last: the other draws are those of before
+        return [Disturbance(blind[i], *(e[i] for e in ev), z[i], module[i]) for i in range(n)]
 
     def log_density(self, d: Disturbance, cycles: int = WINDOW) -> float:
         """log q(d), of its first `cycles` cycles (a run that read no more: the density of what
@@ -167,6 +190,7 @@ class Proposal:
         blind = d.blind[:cycles]
         prev = np.r_[False, blind[:-1]]
         q = np.where(prev, self.stays[:cycles], self.p["blind"][:cycles])
+        out += float(np.sum(np.where(d.module, np.log(self.module), np.log1p(-self.module))))
         return out + float(np.sum(np.where(blind, np.log(q), np.log1p(-q))))
 
 

@@ -56,7 +56,7 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
         for c in range(CHANNELS):
             if dist and d.drop[j, c]:
                 continue                                    # lost: the latched report ages
-            if visible and not (dist and (d.blind[j] or d.miss[j, c])):
+            if visible and not d.module[c // 2] and not (dist and (d.blind[j] or d.miss[j, c])):
                 x = gap + NOISE_SIGMA_M * (float(d.z[j, c]) if dist else 0.0)
                 latched[c] = Report(PRESENT, min(MAX_DISTANCE_DM, max(0, round(x * 10))),
                                     max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round(seen_v * 100))), STATIC, tick)

@@ -13,7 +13,7 @@ from monitor.core.config import Config
 from ..report import Check, Progress, Section, md_table
 from ..scale import Cluster
 from .command import run, summarise
-from .disturbances import BETA, BLIND_STAYS, DISTURBANCES, P_BLIND, P_MISS, WINDOW
+from .disturbances import BETA, BLIND_STAYS, DISTURBANCES, P_BLIND, P_MISS, P_MODULE_MISS, WINDOW
 from .encounters import NOISE_SIGMA_M
 from .importance import NO_FAILURE, W_MAX
 
@@ -95,7 +95,9 @@ def section(out_dir, quick: bool, progress: Progress, config: Optional[Config] =
           f"{P_BLIND:.3g} of the time (seed 002's p_n = {P_MISS} times a beta factor of {BETA}: it begins with "
           f"{DISTURBANCES['blind']:.3g} per clear cycle and goes on with {BLIND_STAYS}, 1 s on average), independent "
           f"misses ({DISTURBANCES['miss']:.4g} per channel, so that each channel misses {P_MISS} of the cycles), lost "
-          f"frames ({DISTURBANCES['drop']}), ghosts ({DISTURBANCES['ghost']}) and {NOISE_SIGMA_M} m distance noise. "
+          f"frames ({DISTURBANCES['drop']}), ghosts ({DISTURBANCES['ghost']}) and {NOISE_SIGMA_M} m distance noise; "
+          f"per encounter, a module whose two channels never see the object ({P_MODULE_MISS} per module: a shorter "
+          "range or another sensor kind, issue 38; an assumption). "
           "Log-likelihoods are against the undisturbed run. The probability of a collision per such encounter is "
           "estimated by importance sampling with the search's proposal (a defensive mixture with the nominal model, "
           f"weights at most {W_MAX:g}; 95 % interval: Clopper-Pearson on the effective number of failures, and "

@@ -1153,10 +1153,10 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     sighted = 0;
     for (m = 0; m < modules; m++)
         if (statuses[2 * m] == RG_PRESENT && statuses[2 * m + 1] == RG_PRESENT) sighted++;
-    strong = s->track_strong && trk.near != RG_NO_TRACK;
+    strong = s->track_strong;                      /* (only ever set with a track) */
     if (present) {
         rg_observe(&trk, distance, toward - own_speed, age, confirmed, sighted > 0);
-        strong = trk.near != RG_NO_TRACK && (strong || confirmed || sighted >= 2);
+        strong = strong || confirmed || sighted >= 2;  /* (a sighting that creates nothing is neither) */
         if (trk.near == RG_NO_TRACK) {
             t_state = RG_TRACK_NONE;
         } else if (trk.near == (int64_t)distance * 10000) {
