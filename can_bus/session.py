@@ -100,7 +100,7 @@ class RunResult:
     extra: dict = field(default_factory=dict)
 
 
-FAULT_REASONS = ("stale", "system_error", "perceptor", "deadline", "train_input")   # diagnostics, not the track
+FAULT_REASONS = ("stale", "system_error", "perceptor", "deadline", "train_input", "implausible")   # diagnostics, not the track
 FAULT_BITS = sum(1 << bit for bit, name in enumerate(REASON_NAMES) if name in FAULT_REASONS)
 
 

@@ -78,6 +78,11 @@ PARAMETER_DOCS = {
                        "1..60000",
     "forget_single_ms": "obstacle memory: the same as forget_ms for an obstacle only one module ever saw (its "
                         "ghosts), ms (at most forget_ms counts), 1..600000",
+    "distance_accuracy_dm": "plausibility: the sensors' declared distance accuracy (a report is within this of the "
+                            "truth), dm, 0..60000",
+    "closing_accuracy_cms": "plausibility: the sensors' declared closing-speed accuracy, cm/s, 0..15000",
+    "plausibility_ms": "plausibility: an implausible channel (its distance did not shrink as its closing speed "
+                       "says) is believed again after this long of plausible reports, ms, 1..60000",
 }
 assert set(PARAMETER_DOCS) == set(Config._fields) - {"period_ms", "topology"}, "a Config field is not a parameter"
 CONFIG_PARAMETERS = tuple(f for f in Config._fields if f in PARAMETER_DOCS)   # in Config's order

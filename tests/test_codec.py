@@ -77,7 +77,7 @@ def ref_in_range(frame_id: int, data: bytes) -> bool:
     if frame_id == TRAIN_STATE_ID:
         return field(data, 16, 16) <= 12000
     if frame_id == BRAKE_DEMAND_ID:
-        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 16383
+        return field(data, 12, 2) <= 2 and field(data, 16, 16) <= 32767
     if frame_id == MONITOR_TRACK_ID:
         return field(data, 12, 3) <= 5        # TrackState; Memory, TrackDistance and TrackAge span their bits
     if frame_id == MONITOR_RISK_ID:           # category 1..4, score 0..20, R1 <= 50 %, R2 <= 100 %, <= 10^6 ppm
@@ -219,7 +219,7 @@ def test_round_trip_latches_exactly_the_report(items):
 
 @settings(max_examples=100, deadline=None)
 @given(speed=st.integers(0, 12000), track=st.integers(0, 1), brake=st.integers(0, 1),
-       level=st.integers(0, 2), reason=st.integers(0, 16383), cyc=st.integers(0, 2**32 - 1),
+       level=st.integers(0, 2), reason=st.integers(0, 32767), cyc=st.integers(0, 2**32 - 1),
        mode=st.integers(0, 3), misses=st.integers(0, 15), dist=st.integers(0, 65535),
        t_state=st.integers(0, 5), memory=st.integers(0, 1), t_dist=st.integers(0, 65535), age=st.integers(0, 65535))
 def test_round_trip_other_messages(speed, track, brake, level, reason, cyc, mode, misses, dist, t_state, memory,
@@ -436,7 +436,7 @@ def _signal_strategy(frame_id: int):
         return st.fixed_dictionaries({"Speed": val(0, 12000, 0, 65535), "TrackCondition": st.integers(0, 1),
                                       "BrakeStatus": st.integers(0, 1)})
     if frame_id == BRAKE_DEMAND_ID:
-        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 16383, 0, 65535), "Warning": st.integers(0, 1),
+        return st.fixed_dictionaries({"Level": val(0, 2, 0, 3), "Reason": val(0, 32767, 0, 65535), "Warning": st.integers(0, 1),
                                       "Cycle": st.integers(0, 2**32 - 1)})
     if frame_id == MONITOR_TRACK_ID:
         return st.fixed_dictionaries({"TrackState": val(0, 5, 0, 7), "Memory": st.integers(0, 1),

@@ -29,6 +29,7 @@ EXPECTED = {
     "config.py": {"gradient_accel_mms2"},
     "observation.py": {"speed_class", "m1_observation", "m2_observation"},
     "risk.py": {"r2_ppm", "risk_score", "risk_category"},
+    "plausibility.py": {"slack", "check"},
 }
 ARGS = ["check", "--analysis_kind=PEP316,asserts", "--per_condition_timeout=10", "--report_all"]
 

@@ -356,7 +356,8 @@ def test_initial_state_is_init_at_the_start_node_with_every_counter_zero(topolog
 
     core = Core(Config(topology=topology))
     start = core.setup.table.start
-    assert initial_state(core.setup) == State(INIT, start, 0, 0, (0,) * modules, 0, 0, 0, 0, (0,) * modules)
+    assert initial_state(core.setup) == State(INIT, start, 0, 0, (0,) * modules, 0, 0, 0, 0, (0,) * modules,
+                                              plaus=((-1, 0, 0, 0, 0, 0, 0),) * (2 * modules))
 
 
 def test_healthy_and_error_cycles_count_from_zero():

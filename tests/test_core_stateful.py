@@ -21,7 +21,7 @@ from monitor.core.braking import curves, ebi_dm
 from monitor.core.observation import M2_OBSERVATIONS
 from monitor.core.types import (
     DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, NO_DISTANCE, NORMAL, PRESENT, R_DEADLINE, R_DISPUTE, R_INIT,
-    R_SAFE_STOP, R_STALE, R_SYSTEM_ERROR, R_TRAIN_INPUT, SAFE_STOP, Inputs, Report, Train,
+    R_SAFE_STOP, R_STALE, R_IMPLAUSIBLE, R_SYSTEM_ERROR, R_TRAIN_INPUT, SAFE_STOP, Inputs, Report, Train,
 )
 
 TABLES = Path(monitor.__file__).resolve().parent / "tables"
@@ -84,6 +84,42 @@ def channel_effective(report, now: int, timeout: int) -> int:
     return report.status
 
 
+class Story:
+    """Independent witness of a channel's plausibility: the PRESENT samples (tick, distance,
+    closing) since its reference; the obstacle ran at least the sum of the lower closing
+    speed of each consecutive pair times their time apart. A sample farther than the
+    reference less that, beyond twice the distance accuracy plus the closing accuracy over the
+    span, is implausible until a whole window of samples agrees."""
+
+    def __init__(self):
+        self.samples, self.bad = [], False
+
+    def see(self, present: bool, report, cfg: Config) -> bool:
+        if not present:
+            self.samples, self.bad = [], False
+            return False
+        t, d, c = report.tick, report.distance_dm, report.closing_cms
+        if self.samples and t == self.samples[-1][0]:
+            return self.bad
+        if not self.samples or not 0 <= t - self.samples[-1][0] <= cfg.plausibility_ms:
+            self.samples = [(t, d, c)]
+            return self.bad
+        self.samples.append((t, d, c))
+        pairs = list(zip(self.samples, self.samples[1:]))
+        least = sum(min(a[2], b[2]) * (b[0] - a[0]) for a, b in pairs) / 1e5      # metres
+        most = sum(max(a[2], b[2]) * (b[0] - a[0]) for a, b in pairs) / 1e5
+        t0, d0 = self.samples[0][0], self.samples[0][1] / 10
+        span_s = (t - t0) / 1000
+        allowed = 2 * cfg.distance_accuracy_dm / 10 + cfg.closing_accuracy_cms / 100 * span_s
+        if d / 10 - (d0 - least) > allowed + 1e-9:
+            self.samples, self.bad = [(t, d, c)], True
+        elif (d0 - most) - d / 10 > allowed + 1e-9:
+            self.samples = [(t, d, c)]
+        elif t - t0 >= cfg.plausibility_ms:
+            self.samples, self.bad = [(t, d, c)], False
+        return self.bad
+
+
 def train_valid(train) -> bool:
     if not isinstance(train, Train):
         return False
@@ -115,6 +151,7 @@ class CoreMachine(RuleBasedStateMachine):
         self.seen = [False] * self.n
         self.disagree = [0] * cfg.modules
         self.cycles = 0
+        self.stories = [Story() for _ in range(self.n)]
 
     # ------------------------------------------------------------------ rules: channels
 
@@ -198,6 +235,8 @@ class CoreMachine(RuleBasedStateMachine):
         # ---- independent expectations
         timeout = cfg.timeout_cycles * cfg.period_ms
         eff = [channel_effective(r, now, timeout) for r in self.reports]
+        implausible = [self.stories[i].see(s == PRESENT, self.reports[i], cfg) for i, s in enumerate(eff)]
+        eff = [DEGRADED if bad else s for s, bad in zip(eff, implausible)]
         for i, s in enumerate(eff):
             if s != DEGRADED:
                 self.seen[i] = True
@@ -243,6 +282,7 @@ class CoreMachine(RuleBasedStateMachine):
             assert out.reasons & R_STALE, ctx
         else:
             assert not out.reasons & R_STALE, ctx
+        assert bool(out.reasons & R_IMPLAUSIBLE) == any(implausible), ctx
         if not valid:
             assert out.system_error and out.reasons & R_TRAIN_INPUT, ctx
             assert out.demand >= cfg.safe_reaction, ctx

@@ -126,7 +126,11 @@ def draw_config(b: Bytes) -> dict:
          # the obstacle memory: forget_ms not a whole number of cycles now and then (rounded up)
          "forget_ms": b.pick([100, 101, 199, 300, 500, 1000, 5000, 1 + b.u16() % 3000]),
          "sensor_range_dm": b.pick([4000, 4000, 500, 60000, 1 + b.u16() % 60000]),
-         "forget_single_ms": b.pick([1000, 100, 250, 1 + b.u16() % 6000])}
+         "forget_single_ms": b.pick([1000, 100, 250, 1 + b.u16() % 6000]),
+         # plausibility: the sensors' declared accuracy and the window that believes a channel again
+         "distance_accuracy_dm": b.pick([500, 0, 50, b.u16() % 3001]),
+         "closing_accuracy_cms": b.pick([100, 0, b.u16() % 501]),
+         "plausibility_ms": b.pick([30000, 300, 1000, 1 + b.u16() % 5000])}
     p.update(draw_declaration(b))
     check(config_from_parameters(p))      # the generator only makes valid configurations
     return p
@@ -372,7 +376,7 @@ def flapping_steps(b: Bytes, cfg) -> list:
     p = cfg.persistence_cycles
     speed = b.u16() % 4001
     d = b.u16() % (MAX_DISTANCE_DM + 1)
-    ch = ChannelInput(1, metres(d), closing_mps(speed), 0, True)
+    ch = ChannelInput(1, metres(d), 0.0, 0, True)     # moving with the train: a constant distance is plausible
     k = b.u8() % (2 * cfg.modules)
     split = [ch] * CHANNELS
     split[k] = CLEAR
@@ -411,15 +415,49 @@ def table_hold_steps(b: Bytes, cfg) -> list:
     def at(d: int) -> StepInput:
         return StepInput((ChannelInput(1, metres(max(0, min(MAX_DISTANCE_DM, d))), closing_mps(speed), 0, True),)
                          * CHANNELS, v)
+    # a jump farther than the declared accuracy allows makes the channels implausible (issue 38
+    # item 3), then the table holds its node: the lower zone is reached within the accuracy
+    # where it can be, and each later report is nearer by the closing speed's travel
+    per = speed * PERIOD_MS // 10000
+    if 2 * cfg.distance_accuracy_dm > 20:
+        later = min(later, near + 2 * cfg.distance_accuracy_dm - 10)
     steps = []
     for _ in range(1 + b.u8() % 3):
-        steps += [(at(near), 1)] * (1 + b.u8() % 3) + [(at(later), 1)] * (1 + b.u8() % 6)
+        steps += [(at(near), 1)] * (1 + b.u8() % 3) + [(at(later - j * per), 1) for j in range(1 + b.u8() % 6)]
+    return steps
+
+
+def frozen_steps(b: Bytes, cfg) -> list:
+    """Issue 38 item 3: every channel (or one module's) approaches a static obstacle
+    plausibly, then sticks on its last report (fresh frames, the distance no longer
+    shrinking) for a while, then approaches again: implausible once the closing speed's
+    travel exceeds the declared accuracy, believed again after plausibility_ms."""
+    per = 1 + b.u8() % 40                           # dm per cycle; the closing speed exactly that
+    speed = per * 10000 // PERIOD_MS
+    d = 3000 + b.u16() % 50000
+    stuck = b.pick([None, None, b.u8() % cfg.modules])  # None: every channel, else one module's
+
+    def at(dist: int, frozen: int) -> StepInput:
+        live = ChannelInput(1, metres(max(0, dist)), closing_mps(speed), 0, True)
+        ice = ChannelInput(1, metres(max(0, frozen)), closing_mps(speed), 0, True)
+        return StepInput(tuple(ice if stuck is None or i // 2 == stuck else live for i in range(CHANNELS)),
+                         speed_mps(speed))
+    steps = []
+    for _ in range(2 + b.u8() % 6):                # plausible
+        steps.append((at(d, d), 1))
+        d -= per
+    frozen = d + per
+    for _ in range(b.u8() % 50):                   # stuck
+        steps.append((at(d, frozen), 1))
+        d -= per
+    for _ in range(b.u8() % 30):                   # plausible again
+        steps.append((at(d, d), 1))
+        d -= per
     return steps
 
 
 # the blocks a sequence is made of, each as often as its weight says (one byte picks one)
-BLOCK_WEIGHTS = ((random_step, 4), (edge_steps, 3), (release_steps, 1), (memory_steps, 3), (flapping_steps, 1),
-                 (service_release_steps, 2), (table_hold_steps, 2), (module_memory_steps, 3))
+BLOCK_WEIGHTS = ((random_step, 3), (edge_steps, 4), (release_steps, 1), (memory_steps, 4), (flapping_steps, 2), (service_release_steps, 2), (table_hold_steps, 5), (module_memory_steps, 4), (frozen_steps, 1))
 BLOCKS = tuple(block for block, weight in BLOCK_WEIGHTS for _ in range(weight))
 
 
@@ -495,6 +533,12 @@ def coverage_probe(seen: Counter, setup):
         seen["disputed farther sighting kept the track"] += (out.distance_dm != NO_DISTANCE
                                                              and out.reasons & R_MEMORY != 0)
         seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
+        # issue 38 item 3: plausibility
+        n = cfg.channels
+        seen["channel made implausible"] += any(after.plaus[i][6] and not before.plaus[i][6] for i in range(n))
+        seen["implausible channel believed again after plausibility_ms"] += any(
+            before.plaus[i][6] and not after.plaus[i][6] and after.plaus[i][0] != -1 for i in range(n))
+        seen["every channel implausible (a common freeze)"] += all(after.plaus[i][6] for i in range(n))
         seen["service held then released after exactly release_confirm_cycles"] += (
             before.held == 1 and after.held == 0 and before.calm == cfg.release_confirm_cycles - 1
             and type(inputs.train.speed_cms) is int and inputs.train.speed_cms > 0)
@@ -577,6 +621,8 @@ EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance 
          "track exactly at the sensor range", "track 1 dm beyond the sensor range", "track passed",
          "disputed farther sighting kept the track", "table demand held", "perceptor error by a flapping channel",
          "disagreement cleared by a calm spell", "service held then released after exactly release_confirm_cycles",
+         "channel made implausible", "implausible channel believed again after plausibility_ms",
+         "every channel implausible (a common freeze)",
          # what any module saw is remembered (issue 38 item 1)
          "track created by a disputed picture", "weak track made strong by a second module",
          "weak track forgotten after exactly forget_single_ms", "weak track one cycle short of forgotten",

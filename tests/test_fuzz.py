@@ -92,7 +92,7 @@ def test_reference_crc_and_unpacking_agree_with_the_codec():
     signals = {0x20: {"Status": 1, "ObstacleType": 2, "Distance": 60000, "ClosingSpeed": -15000, "Module": 0},
                0x25: {"Status": 2, "Distance": 1, "ClosingSpeed": 15000, "Module": 2, "Channel": 1},
                0x30: {"Speed": 12000, "TrackCondition": 1, "BrakeStatus": 1},
-               0x10: {"Level": 2, "Warning": 1, "Reason": 16383, "Cycle": 2**32 - 1},
+               0x10: {"Level": 2, "Warning": 1, "Reason": 32767, "Cycle": 2**32 - 1},
                0x40: {"Mode": 3, "ForeignOutput": 1, "Node": 1023, "ErrorFlags": 63, "VotedDistance": 65535,
                       "TableHash": 4095, "DeadlineMisses": 15},
                0x41: {"TrackState": 5, "Memory": 1, "TrackDistance": 65535, "TrackAge": 65535},

@@ -5,7 +5,11 @@ repeats (all channels fresh, in range and agreeing, the train input valid), so t
 pass the picture through and no error rule fires; and, with the `modules` input, the same
 picture seen by some modules only (both channels of a module alike, the others ABSENT): a
 dispute between modules, answered by the curves, a warning and the table held at its node,
-and remembered by the memory (issue 38 item 1). What remains of a cycle is computed here
+and remembered by the memory (issue 38 item 1); and each module's plausibility (issue 38
+item 3, monitor.core.plausibility: its channels report alike, so one story per module): a
+module whose distance does not shrink as its closing speed says is DEGRADED, a system error
+that is no dispute (the safe reaction, the table held, no forgetting evidence, reasons
+stale and implausible). What remains of a cycle is computed here
 with the same integer formulas as monitor/core, written again on arrays: the braking curves
 of `monitor.core.braking` (EBD, EBI, SBI, warning: every term rounded to the safe side), the
 table's zones under normal conditions, the observation, the table step, the obstacle memory
@@ -34,7 +38,7 @@ from monitor.core.config import RELEASE_REVOCABLE, Config, emergency_bands, grad
 from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
     ABSENT, EMERGENCY, MAINTAIN, MAX_COUNT, NO_DISTANCE, NO_TRACK, NORMAL, PRESENT, R_DISPUTE, R_ENVELOPE, R_LATCH,
-    R_MEMORY, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
+    R_IMPLAUSIBLE, R_MEMORY, R_SBI, R_STALE, R_SYSTEM_ERROR, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
     TRACK_PASSED, TRACK_SEEN, Inputs, Report, Train,
 )
 
@@ -261,11 +265,23 @@ class VectorMonitor:
         self.track_absent = np.zeros(n, dtype=I64)
         self.kept = np.zeros(n, dtype=bool)
         self.strong = np.zeros(n, dtype=bool)       # State.track_strong
+        # State.plaus per module (its two channels report alike here): plausibility.check's
+        # reference distance (-1: none), its report tick, the last report's tick and closing
+        # speed, the least and the most run since, and whether the module is implausible
+        shape = (n, self.cfg.modules)
+        self.p_ref = np.full(shape, -1, dtype=I64)
+        self.p_ref_tick = np.zeros(shape, dtype=I64)
+        self.p_last_tick = np.zeros(shape, dtype=I64)
+        self.p_last_closing = np.zeros(shape, dtype=I64)
+        self.p_lo = np.zeros(shape, dtype=I64)
+        self.p_hi = np.zeros(shape, dtype=I64)
+        self.p_bad = np.zeros(shape, dtype=bool)
+        self.tick = 0                               # the cycle's tick: k * period_ms
         self.m2 = setup.model == "m2"
         # the table's risk column at its node; another policy's nodes are not the table's: 0
         self.risk = np.asarray(setup.table.risk, dtype=I64) if policy is None else None
 
-    def _memory(self, present, confirmed, several, dist, speed, toward, own, age) -> tuple:
+    def _memory(self, present, confirmed, several, dist, speed, toward, own, age, stale) -> tuple:
         """Step 4 of the cycle: the track after this cycle's picture (memory.observe and
         forget). A confirmed picture creates or replaces the track, a disputed one (some
         module sees it) creates it or brings it nearer; ABSENT with every channel fresh is
@@ -286,7 +302,7 @@ class VectorMonitor:
                                                                           self.setup.track_accel, cfg.period_ms),
                                               self.far))
         passed = lost & (far < 0)
-        evidence = lost & ~passed & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
+        evidence = lost & ~passed & ~stale & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
         count = self.track_absent + 1
         strong = (had & self.strong) | confirmed | several
         forgotten = evidence & (count >= np.where(strong, self.setup.forget_cycles, self.setup.forget_single))
@@ -307,6 +323,35 @@ class VectorMonitor:
         remembered = kept | (present & ~confirmed)
         return t_state, remembered, far, np.where(takes, age, 0)
 
+    def _plausibility(self, sees: np.ndarray, dist, closing, report_tick) -> np.ndarray:
+        """Step 1b of the cycle (plausibility.check) for each module's channels: `sees`
+        (n, modules) where they report the obstacle PRESENT; returns (n, modules) implausible."""
+        cfg = self.cfg
+        d, c, t = dist[:, None], closing[:, None], report_tick[:, None]
+        fresh = sees & (self.p_ref == -1)
+        new = sees & ~fresh & (t != self.p_last_tick)
+        dt = t - self.p_last_tick
+        gap = new & ((dt < 0) | (dt > cfg.plausibility_ms))
+        go = new & ~gap
+        lo = self.p_lo + np.minimum(c, self.p_last_closing) * dt
+        hi = self.p_hi + np.maximum(c, self.p_last_closing) * dt
+        span = t - self.p_ref_tick
+        tol = 2 * cfg.distance_accuracy_dm * UNITS_PER_DM + cfg.closing_accuracy_cms * span
+        du, ru = d * UNITS_PER_DM, self.p_ref * UNITS_PER_DM
+        farther = go & (du > ru - lo + tol)
+        nearer = go & ~farther & (du < ru - hi - tol)
+        whole = go & ~farther & ~nearer & (span >= cfg.plausibility_ms)
+        anchor = fresh | gap | farther | nearer | whole
+        cont = go & ~anchor
+        self.p_bad = np.where(sees, (self.p_bad | farther) & ~whole, False)
+        self.p_ref = np.where(anchor, d, np.where(sees, self.p_ref, -1))
+        self.p_ref_tick = np.where(anchor, t, np.where(sees, self.p_ref_tick, 0))
+        self.p_last_tick = np.where(anchor | cont, t, np.where(sees, self.p_last_tick, 0))
+        self.p_last_closing = np.where(anchor | cont, c, np.where(sees, self.p_last_closing, 0))
+        self.p_lo = np.where(cont, lo, np.where(sees & ~anchor, self.p_lo, 0))
+        self.p_hi = np.where(cont, hi, np.where(sees & ~anchor, self.p_hi, 0))
+        return self.p_bad.copy()
+
     def step(self, present: np.ndarray, distance_dm: np.ndarray, speed_cms: np.ndarray,
              closing_cms: Optional[np.ndarray] = None, obstacle: Optional[np.ndarray] = None,
              track: Optional[np.ndarray] = None, brake: Optional[np.ndarray] = None,
@@ -325,19 +370,32 @@ class VectorMonitor:
         zeros = np.zeros(present.shape[0], dtype=I64)
         track = zeros if track is None else np.asarray(track, dtype=I64)
         brake = zeros if brake is None else np.asarray(brake, dtype=I64)
-        age = zeros if age_ms is None else np.where(present, age_ms, 0).astype(I64)
-        dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
-        toward = speed if closing_cms is None else np.where(present, closing_cms, speed).astype(I64)
-        own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
         everyone = (1 << cfg.modules) - 1
         seeing = np.full(present.shape[0], everyone, dtype=I64) if modules is None else np.asarray(modules, dtype=I64)
         if present.any() and ((seeing[present] & everyone) == 0).any():
             raise ValueError("a present obstacle needs at least one module that sees it (modules mask 0)")
-        dispute = present & ((seeing & everyone) != everyone)
         mask = seeing & everyone
+        # 1b. plausibility: a module whose channels' distance does not shrink as their closing
+        #     speeds say is DEGRADED (both channels alike), a system error that is no dispute
+        raw_age = zeros if age_ms is None else np.where(present, age_ms, 0).astype(I64)
+        raw_closing = speed if closing_cms is None else np.where(present, closing_cms, 0).astype(I64)
+        bit = np.arange(cfg.modules)
+        sees = present[:, None] & (((mask[:, None] >> bit) & 1) == 1)
+        bad = self._plausibility(sees, np.where(present, distance_dm, 0).astype(I64), raw_closing,
+                                 self.tick - raw_age)
+        self.tick += cfg.period_ms
+        implausible = bad.any(axis=1)
+        mask = mask & ~(bad * (1 << bit)).sum(axis=1)
+        present = present & (mask != 0)                 # what the voter sees PRESENT
+        age = np.where(present, raw_age, 0)
+        dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
+        toward = np.where(present, raw_closing, speed)
+        own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
+        dispute = present & (mask != everyone) & ~implausible
+        error = dispute | implausible                   # the table holds its node
         several = present & ((mask & (mask - 1)) != 0)      # two modules or more (two bits set)
-        t_state, remembered, far, t_age = self._memory(present, present & ~dispute, several, dist, speed, toward, own,
-                                                       age)
+        t_state, remembered, far, t_age = self._memory(present, present & ~error, several, dist, speed, toward, own,
+                                                       age, implausible)
         track_dm = np.where(self.near == NO_TRACK, NO_DISTANCE, self.near // UNITS_PER_DM)
         # the supervised obstacle: the voted one, else the remembered one; a disputed picture
         # with a track has both, each on its own curves (cycle.py step 5), the higher demand
@@ -350,7 +408,7 @@ class VectorMonitor:
         env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
         alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age)
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
-        zone = np.where(present, sup_zone, 0)       # the observation reads the voted picture alone
+        zone = np.where(present, sup_zone, np.where(implausible, 3, 0))  # the voted picture alone; DEGRADED: 3
         both = present & remembered
         if both.any():
             c_t = curves(cfg, speed, track, brake, t_toward, t_age)
@@ -364,23 +422,29 @@ class VectorMonitor:
         spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
         obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
         obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake if self.m2 else zone
-        # the papers' risk at the supervised (nearest) obstacle, monitor/core/risk.py
+        # the papers' risk at the supervised (nearest) obstacle, monitor/core/risk.py; a
+        # DEGRADED picture with nothing seen or remembered reads as an obstacle at 0 m
+        blind = ~sup & implausible
+        if blind.any():
+            b_a1, b_a2 = zone_alphas(cfg, speed, speed, zeros)
+            sup, sup_dist = sup | blind, np.where(blind, 0, sup_dist)
+            alpha1, alpha2 = np.where(blind, b_a1, alpha1), np.where(blind, b_a2, alpha2)
         r1 = np.where(sup, r1_ppm(np.where(sup, sup_dist, 0), alpha1), 0)
         r2 = np.where(sup, r2_ppm(np.where(sup, sup_dist, 0), alpha1, alpha2), 0)
         score = 3 * zone + 2 * spd + 2 * obst + track + 2 * brake
-        if dispute.any():                           # a system error holds the table at its node
-            if not isinstance(self.policy, TablePolicy):
-                raise ValueError("disputes between modules are modelled for the table policy only")
+        if dispute.any() and not isinstance(self.policy, TablePolicy):
+            raise ValueError("disputes between modules are modelled for the table policy only")
+        if error.any() and isinstance(self.policy, TablePolicy):   # a system error holds the table at its node
             before = self.policy.node.copy()
             self.policy.step(obs, self.applied)
-            self.policy.node = np.where(dispute, before, self.policy.node)
+            self.policy.node = np.where(error, before, self.policy.node)
             node = self.policy.node
             action = self.policy.action[node]
-        else:
+        else:                                       # (a baseline policy steps on: the safe reaction answers)
             action, node = self.policy.step(obs, self.applied)
         table = table_hold(self.table_held, action, speed, zone == 0)     # the voted picture's zone
         self.table_held = table
-        demand = np.maximum(table, env)
+        demand = np.maximum(np.maximum(table, env), np.where(implausible, cfg.safe_reaction, MAINTAIN))
         keep = present & ((zone != 0) | self.kept) & (toward > 0) & (speed > 0)      # envelope.keep_held
         asked = np.where(keep, np.maximum(demand, self.held), demand)
         self.held, self.calm, final = hold(self.held, self.calm, asked, speed,
@@ -390,12 +454,13 @@ class VectorMonitor:
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
                    | np.where(env == SERVICE, R_SBI, 0) | np.where(final > demand, R_LATCH, 0)
                    | np.where(warn, R_WARNING, 0) | np.where(remembered & (t_state != TRACK_SEEN), R_MEMORY, 0)
-                   | np.where(dispute, R_SYSTEM_ERROR | R_DISPUTE, 0))
+                   | np.where(dispute, R_SYSTEM_ERROR | R_DISPUTE, 0)
+                   | np.where(implausible, R_SYSTEM_ERROR | R_STALE | R_IMPLAUSIBLE, 0))
         out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
                "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
                "track_state": t_state, "r1_ppm": r1, "r2_ppm": r2, "risk_score": score,
                "risk_category": risk_category(score), "table_risk_ppm": self.risk[node] if self.risk is not None else np.zeros_like(node), "track_far": far, "table": action, "table_demand": table, "curves": c,
-               "alpha1_dm": alpha1, "alpha2_dm": alpha2, "dispute": dispute}
+               "alpha1_dm": alpha1, "alpha2_dm": alpha2, "dispute": dispute, "implausible": implausible}
         # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
         has = self.near != NO_TRACK
         moved = self.near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.track_closing,
@@ -478,8 +543,9 @@ def first_mismatch(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[O
     """Replay the first `trains` trains of a trace (inputs INPUT_KEYS, twin outputs as
     twin_trace or the seed worlds write them) through the real core; (the first difference
     or None, cycles compared). Every cycle must also be NORMAL with no flag or error (the
-    case the twin covers), but for a dispute between modules: a system error with no module
-    flagged exactly in the disputed cycles."""
+    case the twin covers), but for a dispute between modules (a system error with no module
+    flagged exactly in the disputed cycles) and for an implausible module (a system error
+    exactly in the cycles whose twin reasons say so, its module flagged)."""
     compared = 0
     for i in range(min(trains, trace["present"].shape[1])):
         inp = {k: (trace[k][:, i] if k in trace else None) for k in INPUT_KEYS}
@@ -488,15 +554,19 @@ def first_mismatch(setup: cycle.Setup, trace: dict, trains: int = 20) -> tuple[O
         everyone = (1 << setup.config.modules) - 1
         disputed = (np.zeros(len(outs), dtype=bool) if inp["modules"] is None
                     else np.asarray(inp["present"], dtype=bool) & ((np.asarray(inp["modules"]) & everyone) != everyone))
+        implausible = ((np.asarray(twin["reasons"]) & R_IMPLAUSIBLE) != 0 if "reasons" in twin
+                       else np.zeros(len(outs), dtype=bool))
+        erring = (disputed & ~implausible) | implausible
         for k, out in enumerate(outs):
             voted = int(inp["distance_dm"][k]) if inp["present"][k] else NO_DISTANCE
-            for key, value in (("distance_dm", voted), *((key, c[k]) for key, c in twin.items())):
+            own = () if implausible[k] or "distance_dm" in twin else (("distance_dm", voted),)
+            for key, value in (*own, *((key, c[k]) for key, c in twin.items())):
                 if getattr(out, key) != value:
                     return {"train": i, "cycle": k, "field": key, "core": getattr(out, key), "twin": value}, compared
-            if disputed.any():
-                if out.module_flags or out.system_error != bool(disputed[k]):
+            if erring.any():
+                if (out.module_flags and not implausible[k]) or out.system_error != bool(erring[k]):
                     return {"train": i, "cycle": k, "field": "system_error", "core": out,
-                            "twin": f"system error {bool(disputed[k])}, no module flag"}, compared
+                            "twin": f"system error {bool(erring[k])}, module flags only if implausible"}, compared
             elif out.mode != NORMAL or out.module_flags or out.system_error or out.error_cycles:
                 return {"train": i, "cycle": k, "field": "mode", "core": out, "twin": "NORMAL, no error"}, compared
             compared += 1

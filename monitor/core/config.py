@@ -57,6 +57,10 @@ class Config(NamedTuple):
     forget_ms: int = 7500              # fresh unanimous ABSENT this long forgets a remembered obstacle (the trade-off: docs/supervision.md 5)
     sensor_range_dm: int = 4000        # the sensors' declared range: absence counts as evidence only inside it
     forget_single_ms: int = 1000       # the same for an obstacle only one module ever saw (issue 38: its ghosts)
+    # --- the sensors' declared accuracy: plausibility of a channel's reports (monitor/core/plausibility.py)
+    distance_accuracy_dm: int = 500    # a reported distance is within this of the truth (5 sigma of the papers' 10 m noise)
+    closing_accuracy_cms: int = 100    # a reported closing speed is within this of the truth
+    plausibility_ms: int = 30000       # an implausible channel is believed again after this long of plausible reports
 
     @property
     def modules(self) -> int:
@@ -129,6 +133,9 @@ def check(cfg: Config) -> None:
     need(1 <= cfg.forget_ms <= 600000, "forget_ms", "must be 1..600000 ms (10 min; rounded up to whole cycles)")
     need(1 <= cfg.sensor_range_dm <= 60000, "sensor_range_dm", "must be 1..60000 dm")
     need(1 <= cfg.forget_single_ms <= 600000, "forget_single_ms", "must be 1..600000 ms (at most forget_ms counts; rounded up to whole cycles)")
+    need(0 <= cfg.distance_accuracy_dm <= 60000, "distance_accuracy_dm", "must be 0..60000 dm")
+    need(0 <= cfg.closing_accuracy_cms <= 15000, "closing_accuracy_cms", "must be 0..15000 cm/s")
+    need(1 <= cfg.plausibility_ms <= 60000, "plausibility_ms", "must be 1..60000 ms")
 
 
 def forget_cycles(cfg: Config, single: bool = False) -> int:

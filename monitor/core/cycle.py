@@ -18,12 +18,13 @@ from .config import RELEASE_REVOCABLE, forget_cycles, track_accel_mms2
 from .envelope import combine, hold, keep_held, supervision_demand, table_hold, zone
 from .freshness import channel_status
 from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
+from .plausibility import NO_REFERENCE, check as plausibility_check
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .risk import CRITICAL, MAX_SCORE, PPM, r1_ppm, r2_ppm, risk_category, risk_score
 from .table import Table, TableError, decode
 from .types import (
     ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
-    NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
+    NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_IMPLAUSIBLE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC,
     TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Outputs, State,
 )
@@ -71,7 +72,8 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
 
 def initial_state(setup: Setup) -> State:
     modules = (0,) * setup.config.modules
-    return State(INIT, setup.table.start, MAINTAIN, 0, modules, 0, 0, 0, 0, modules)
+    return State(INIT, setup.table.start, MAINTAIN, 0, modules, 0, 0, 0, 0, modules,
+                 plaus=(NO_REFERENCE,) * setup.config.channels)
 
 
 def _train(train) -> tuple[int, int, int, bool]:
@@ -112,6 +114,19 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     # 1. freshness and range per channel
     statuses = [channel_status(reports[i], tick, setup.timeout_ticks) for i in range(n)]
+    # 1b. plausibility (plausibility.py): a PRESENT channel whose distance does not shrink as
+    #     its own closing speeds say is DEGRADED (a frozen sensor keeps sending fresh frames)
+    plaus = list(state.plaus[:n]) + [NO_REFERENCE] * (n - len(state.plaus))
+    implausible = False
+    for i in range(n):
+        present = statuses[i] == PRESENT
+        r = reports[i]
+        plaus[i] = plausibility_check(plaus[i], present, r.distance_dm if present else 0, r.closing_cms if present else 0,
+                                      r.tick if present else 0, cfg.distance_accuracy_dm, cfg.closing_accuracy_cms,
+                                      cfg.plausibility_ms)
+        if plaus[i][6]:                                 # (only ever set while PRESENT)
+            statuses[i] = DEGRADED
+            implausible = True
     seen = state.seen
     stale = False
     closing = None
@@ -277,6 +292,8 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         reasons |= R_SBI
     if stale:
         reasons |= R_STALE
+    if implausible:
+        reasons |= R_IMPLAUSIBLE
     if remembered and t_state != TRACK_SEEN:
         reasons |= R_MEMORY
     if error:
@@ -316,7 +333,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         near = near if near > 0 else 0
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
                       table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_cycles, t_absent,
-                      keep and speed > 0 and held > MAINTAIN, strong)
+                      keep and speed > 0 and held > MAINTAIN, strong, tuple(plaus))
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state, r1, r2, score, risk_category(score), setup.table.risk[node])
     return new_state, out

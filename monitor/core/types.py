@@ -38,8 +38,9 @@ R_SBI = 1 << 10          # voted obstacle inside the service intervention curve 
 R_WARNING = 1 << 11      # voted obstacle inside the warning curve, or a disputed obstacle
 R_DISPUTE = 1 << 12      # channels disagree about an obstacle while all are fresh: graded answer
 R_MEMORY = 1 << 13       # the curves supervise a remembered obstacle that no channel shows this cycle
+R_IMPLAUSIBLE = 1 << 14  # a channel's distance does not move as its closing speed says (counted DEGRADED)
 REASON_NAMES = ("table", "envelope", "system_error", "latch", "init", "safe_stop",
-                "stale", "perceptor", "deadline", "train_input", "sbi", "warning", "dispute", "memory")
+                "stale", "perceptor", "deadline", "train_input", "sbi", "warning", "dispute", "memory", "implausible")
 
 # Obstacle memory (monitor/core/memory.py): why the track is what it is this cycle.
 TRACK_NONE, TRACK_SEEN, TRACK_HELD, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_PASSED = range(6)
@@ -100,6 +101,7 @@ class State(NamedTuple):
     track_absent: int = 0        # cycles in a row of positive evidence that it is gone
     kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)
     track_strong: bool = False   # the track was confirmed or seen by two modules at once: forget_ms, not forget_single_ms
+    plaus: tuple = ()            # per channel: plausibility.check's state (NO_REFERENCE while not PRESENT)
 
     @property
     def latched(self) -> bool:

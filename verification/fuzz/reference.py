@@ -38,7 +38,7 @@ _OBSTACLE = _E2E + (("Status", 12, 2, False, 0, 2), ("ObstacleType", 14, 2, Fals
                     ("Module", 48, 2, False, 0, 2), ("Channel", 50, 1, False, 0, 1))
 LAYOUT = {
     BRAKE_DEMAND: _E2E + (("Level", 12, 2, False, 0, 2), ("Warning", 14, 1, False, 0, 1),
-                          ("Reason", 16, 16, False, 0, 16383), ("Cycle", 32, 32, False, 0, 2**32 - 1)),
+                          ("Reason", 16, 16, False, 0, 32767), ("Cycle", 32, 32, False, 0, 2**32 - 1)),
     **{fid: _OBSTACLE for fid in OBSTACLES},
     TRAIN_STATE: _E2E + (("TrackCondition", 12, 1, False, 0, 1), ("BrakeStatus", 13, 1, False, 0, 1),
                          ("Speed", 16, 16, False, 0, 12000)),    # [0|120] m/s at 0.01 m/s

@@ -153,7 +153,7 @@ class Traffic:
             b = t.u8()
             return {"Speed": self.pick(0, 12000), "TrackCondition": b & 1, "BrakeStatus": (b >> 1) & 1}
         if frame_id == BRAKE_DEMAND:
-            return {"Level": t.u8() % 3, "Warning": t.u8() % 2, "Reason": self.pick(0, 16383), "Cycle": t.u32()}
+            return {"Level": t.u8() % 3, "Warning": t.u8() % 2, "Reason": self.pick(0, 32767), "Cycle": t.u32()}
         if frame_id == MONITOR_TRACK:
             b = t.u8()
             return {"TrackState": b % 6, "Memory": (b >> 3) & 1, "TrackDistance": self.pick(0, 65535),

@@ -12,9 +12,10 @@ ROOT = Path(__file__).resolve().parents[2]             # the repository: mutant 
 CORE = ROOT / "monitor" / "core"
 EQUIVALENTS = ROOT / "verification" / "mutation_equivalents.toml"
 PY_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py", "memory.py", "cycle.py", "braking.py",
-            "config.py", "table.py", "types.py", "risk.py")
+            "config.py", "table.py", "types.py", "risk.py", "plausibility.py")
 # the tests run against every Python mutant, fastest killers first (-x stops at the first failure)
-PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests/test_core_memory.py",
+PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests/test_plausibility.py",
+            "tests/test_core_memory.py",
             "tests/test_core_cycle.py", "tests/test_supervision.py", "tests/test_core_tables.py", "tests/test_table.py",
             "tests/test_core_stateful.py", "tests/test_risk.py")     # risk.py's killer last: reached only by what the others let through
 JOBS = 2
@@ -35,7 +36,7 @@ C_TESTS = ("tests/test_fmu_equivalence.py",)
 C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
                "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_hold",
                "rg_table_hold", "rg_supervised_demand", "rg_decide", "rg_accel_run", "rg_near_travel",
-               "rg_far_travel", "rg_observe", "rg_forget", "rg_track_dm", "speed_class")
+               "rg_far_travel", "rg_observe", "rg_forget", "rg_track_dm", "speed_class", "rg_plausibility")
 
 Progress = Callable[[str], None]
 
@@ -43,5 +44,5 @@ Progress = Callable[[str], None]
 # verify --quick`'s; CI's holds the voters, freshness, observation, the envelope (zones,
 # ladder, combine, the holds) and the obstacle memory's decisions (observe, forget)
 CI_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py")
-CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget")
+CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget", "plausibility.py")
 REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_SCOPES)

@@ -77,10 +77,18 @@ class Run:
     cost: Optional[PolicyCost] = None # what the policy cost, per train (world_metrics)
 
 
+# eq. 9's sensors misperceive the zone independently every step: a misperceived distance is
+# drawn anywhere in the wrong zone, hundreds of metres from the last one, so their distance
+# has no continuity to check. Declared as such (6 km accuracy), the monitor believes them as
+# the paper does; with the default 50 m every misperception farther is implausible (issue 38
+# item 3) and the paper's observation error rates cannot show
+EQ9_SENSORS = Config(distance_accuracy_dm=60000)
+
+
 def load_setup(table: Optional[bytes] = None) -> tuple:
     """The monitor setup with the shipped m2 table (or `table`), and the Model 2 it was solved
     for (rebuilt from the table header's parameters and checked against its model_sha256)."""
-    setup = cycle.create(Config(), read("m2") if table is None else table, "m2")
+    setup = cycle.create(EQ9_SENSORS, read("m2") if table is None else table, "m2")
     model = rebuild(setup.table.header)          # refused unless it hashes to the header's model_sha256
     params = override(model2.Model2Params(), {"zones": "paper", **model.params})
     return setup, params, model

@@ -55,6 +55,9 @@ void rg_config_default(rg_config *cfg)
     cfg->forget_ms = 7500;
     cfg->forget_single_ms = 1000;
     cfg->sensor_range_dm = 4000;
+    cfg->distance_accuracy_dm = 500;
+    cfg->closing_accuracy_cms = 100;
+    cfg->plausibility_ms = 30000;
 }
 
 static int refuse(char *msg, size_t len, const char *name, long long value, const char *why)
@@ -181,6 +184,12 @@ int rg_config_check(const rg_config *c, char *msg, size_t len)
                       "must be 1..600000 ms (at most forget_ms counts; rounded up to whole cycles)");
     if (c->sensor_range_dm < 1 || c->sensor_range_dm > RG_MAX_DISTANCE_DM)
         return refuse(msg, len, "sensor_range_dm", c->sensor_range_dm, "must be 1..60000 dm");
+    if (c->distance_accuracy_dm < 0 || c->distance_accuracy_dm > 60000)
+        return refuse(msg, len, "distance_accuracy_dm", c->distance_accuracy_dm, "must be 0..60000 dm");
+    if (c->closing_accuracy_cms < 0 || c->closing_accuracy_cms > 15000)
+        return refuse(msg, len, "closing_accuracy_cms", c->closing_accuracy_cms, "must be 0..15000 cm/s");
+    if (c->plausibility_ms < 1 || c->plausibility_ms > 60000)
+        return refuse(msg, len, "plausibility_ms", c->plausibility_ms, "must be 1..60000 ms");
     return 0;
 }
 
@@ -276,6 +285,7 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->track_absent = 0;
     s->kept = 0;
     s->track_strong = 0;
+    for (m = 0; m < RG_MAX_CHANNELS; m++) rg_plausibility(&s->plaus[m], 0, 0, 0, 0, 0, 0, 1);
 }
 
 /* config.py's forget_cycles: cycles of evidence that make forget_ms (`single`: the lesser
@@ -881,6 +891,99 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
     return run > 0 ? run : 0;
 }
 
+/* One channel's plausibility after this cycle's report (monitor/core/plausibility.py): a
+ * PRESENT report farther than the reference less the least the obstacle ran (the lower of
+ * each pair of reported closing speeds times the time between them), beyond the declared
+ * accuracy (each distance within accuracy_dm, the closing speed within accuracy_cms over the
+ * span), makes the channel implausible until a whole window of its reports agrees again; a
+ * report nearer than the most it ran is something new in front and starts a new reference;
+ * a channel that is not PRESENT drops its reference and its fault. A state no cycle produces
+ * (out-of-range fields, a tick behind or far ahead of the reference) starts a new reference
+ * and keeps the fault: no evidence either way. */
+#define RG_PLAUS_MAX_SPAN 120000   /* a reference is at most two windows old (window <= 60 s) */
+#define RG_PLAUS_MAX_RUN ((int64_t)RG_MAX_CLOSING_CMS * RG_PLAUS_MAX_SPAN)
+#define RG_PLAUS_MAX_TICK ((int64_t)1 << 61)
+/*@ requires \valid(p);
+    requires 0 <= distance_dm <= 60000 && -15000 <= closing_cms <= 15000;
+    requires 0 <= accuracy_dm <= 60000 && 0 <= accuracy_cms <= 15000 && 1 <= window_ms <= 60000;
+    assigns *p;
+    ensures p->bad == 0 || p->bad == 1;
+    ensures present == 0 ==> p->ref_dm == -1 && p->bad == 0 && p->lo == 0 && p->hi == 0;
+    ensures present != 0 ==> p->ref_dm >= 0 && p->last_tick == tick;
+    ensures present != 0 && \old(p->ref_dm) == -1 ==>
+            p->ref_dm == distance_dm && p->ref_tick == tick && p->lo == 0 && p->hi == 0
+            && p->bad == (\old(p->bad) != 0);
+    ensures present != 0 && \old(p->bad) != 0 && p->bad == 0 ==> p->ref_tick == tick && p->ref_dm == distance_dm;
+*/
+void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t closing_cms, int64_t tick,
+                     int32_t accuracy_dm, int32_t accuracy_cms, int32_t window_ms)
+{
+    int32_t bad;
+    int64_t dt, span, lo, hi, tolerance, d, r;
+    if (!present) {
+        p->ref_dm = RG_NO_TRACK;
+        p->last_closing = 0;
+        p->bad = 0;
+        p->ref_tick = 0;
+        p->last_tick = 0;
+        p->lo = 0;
+        p->hi = 0;
+        return;
+    }
+    bad = p->bad != 0;
+    if (p->ref_dm >= 0 && tick == p->last_tick) {
+        p->bad = bad;    /* nothing new this cycle */
+        return;
+    }
+    /* a reference to go on from: in range, the newest report after the last one and at
+     * most a window later, the reference at most two windows back (always so for a state
+     * this function wrote: it continues only while the span is under one window). Ticks
+     * beyond +-2^61 ms (73 million years; the shells count from 0) start a new reference
+     * too, so that the differences below cannot overflow */
+    dt = 0;
+    span = 0;
+    if (tick >= -RG_PLAUS_MAX_TICK && tick <= RG_PLAUS_MAX_TICK && p->last_tick >= -RG_PLAUS_MAX_TICK
+        && p->last_tick <= RG_PLAUS_MAX_TICK && p->ref_tick >= -RG_PLAUS_MAX_TICK && p->ref_tick <= RG_PLAUS_MAX_TICK) {
+        dt = tick - p->last_tick;
+        span = tick - p->ref_tick;
+    } else {
+        dt = -1;
+    }
+    if (p->ref_dm < 0 || p->ref_dm > RG_MAX_DISTANCE_DM || p->last_closing < -RG_MAX_CLOSING_CMS
+        || p->last_closing > RG_MAX_CLOSING_CMS || p->lo < -RG_PLAUS_MAX_RUN || p->lo > RG_PLAUS_MAX_RUN
+        || p->hi < -RG_PLAUS_MAX_RUN || p->hi > RG_PLAUS_MAX_RUN || dt < 0 || dt > window_ms
+        || span < dt || span > RG_PLAUS_MAX_SPAN) {
+        p->ref_dm = distance_dm;
+        p->last_closing = closing_cms;
+        p->bad = bad;
+        p->ref_tick = tick;
+        p->last_tick = tick;
+        p->lo = 0;
+        p->hi = 0;
+        return;
+    }
+    lo = p->lo + (int64_t)(closing_cms < p->last_closing ? closing_cms : p->last_closing) * dt;
+    hi = p->hi + (int64_t)(closing_cms > p->last_closing ? closing_cms : p->last_closing) * dt;
+    tolerance = 2 * (int64_t)accuracy_dm * RG_UNITS_PER_DM + (int64_t)accuracy_cms * span;
+    d = (int64_t)distance_dm * RG_UNITS_PER_DM;
+    r = (int64_t)p->ref_dm * RG_UNITS_PER_DM;
+    p->last_closing = closing_cms;
+    p->last_tick = tick;
+    if (d > r - lo + tolerance || d < r - hi - tolerance || span >= window_ms) {
+        /* farther than it can be: implausible; nearer: something new in front; a whole
+         * window that agrees: plausible again. Each starts a new reference */
+        p->bad = d > r - lo + tolerance ? 1 : (d < r - hi - tolerance ? bad : 0);
+        p->ref_dm = distance_dm;
+        p->ref_tick = tick;
+        p->lo = 0;
+        p->hi = 0;
+    } else {
+        p->bad = bad;
+        p->lo = lo;
+        p->hi = hi;
+    }
+}
+
 /* The track after a voted obstacle at `distance_dm`: a confirmed picture creates or
  * replaces it; a disputed one in which some module sees the obstacle with both channels
  * (`sighted`) creates it when there is none; any disputed one brings an existing track
@@ -1052,7 +1155,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t ms[RG_MAX_MODULES], md[RG_MAX_MODULES], mf[RG_MAX_MODULES], disagree[RG_MAX_MODULES];
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
-    int32_t stale = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
+    int32_t stale = 0, implausible = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
     int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, sighted, strong, keep;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
@@ -1074,21 +1177,25 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         return;
     }
 
-    /* 1. freshness and range per channel */
+    /* 1. freshness and range per channel; 1b. plausibility: a PRESENT channel whose distance
+     *    does not shrink as its own closing speeds say is DEGRADED (a frozen sensor keeps
+     *    sending fresh frames) */
     for (i = 0; i < channels; i++) {
         statuses[i] = rg_effective_status(&in->reports[i], tick, timeout_ticks);
         dist[i] = 0;
-        if (statuses[i] == RG_DEGRADED) {
-            stale = 1;
-        } else {
-            seen |= 1u << i;
-            if (statuses[i] == RG_PRESENT) {
-                const rg_report *r = &in->reports[i];
+        if (statuses[i] == RG_PRESENT) {
+            const rg_report *r = &in->reports[i];
+            /* rg_effective_status's contract gives this (WP proves it); EVA, which
+             * cannot relate the status to the fields, takes the ranges from it */
+            /*@ assert present_in_range: 0 <= r->distance_dm <= 60000 && -15000 <= r->closing_cms <= 15000
+                                         && 0 <= r->obstacle <= 2; */
+            rg_plausibility(&s->plaus[i], 1, r->distance_dm, r->closing_cms, r->tick, cfg->distance_accuracy_dm,
+                            cfg->closing_accuracy_cms, cfg->plausibility_ms);
+            if (s->plaus[i].bad) {
+                statuses[i] = RG_DEGRADED;
+                implausible = 1;
+            } else {
                 int32_t a;
-                /* rg_effective_status's contract gives this (WP proves it); EVA, which
-                 * cannot relate the status to the fields, takes the ranges from it */
-                /*@ assert present_in_range: 0 <= r->distance_dm <= 60000 && -15000 <= r->closing_cms <= 15000
-                                             && 0 <= r->obstacle <= 2; */
                 dist[i] = r->distance_dm;     /* (kept here, where EVA knows its range) */
                 if (!have_closing || r->closing_cms > closing) closing = r->closing_cms;
                 have_closing = 1;
@@ -1096,6 +1203,13 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
                 a = rg_age_ms(r->tick, tick, age_limit);
                 if (a > age) age = a;
             }
+        } else {
+            rg_plausibility(&s->plaus[i], 0, 0, 0, 0, 0, 0, 1);
+        }
+        if (statuses[i] == RG_DEGRADED) {
+            stale = 1;
+        } else {
+            seen |= 1u << i;
         }
     }
 
@@ -1273,6 +1387,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     else if (env == RG_SERVICE) reasons |= RG_R_SBI;
     if (stale) reasons |= RG_R_STALE;
     if (remembered && t_state != RG_TRACK_SEEN) reasons |= RG_R_MEMORY;
+    if (implausible) reasons |= RG_R_IMPLAUSIBLE;
     if (error) {
         reasons |= RG_R_SYSTEM_ERROR | (train_ok ? 0 : RG_R_TRAIN_INPUT);
         if (dispute) {

@@ -48,6 +48,7 @@
 #define RG_R_WARNING (1 << 11)
 #define RG_R_DISPUTE (1 << 12)
 #define RG_R_MEMORY (1 << 13)
+#define RG_R_IMPLAUSIBLE (1 << 14)
 
 /* obstacle memory (monitor/core/memory.py): why the track is what it is this cycle */
 #define RG_TRACK_NONE 0
@@ -140,7 +141,24 @@ typedef struct {
     int32_t forget_ms;              /* fresh unanimous ABSENT this long forgets a remembered obstacle */
     int32_t sensor_range_dm;        /* absence counts as evidence only inside the sensors' declared range */
     int32_t forget_single_ms;       /* the same as forget_ms for an obstacle only one module ever saw */
+    /* the sensors' declared accuracy: plausibility of a channel's reports */
+    int32_t distance_accuracy_dm;   /* a reported distance is within this of the truth */
+    int32_t closing_accuracy_cms;   /* a reported closing speed is within this of the truth */
+    int32_t plausibility_ms;        /* an implausible channel is believed again after this long of plausible reports */
 } rg_config;
+
+/* One channel's plausibility (monitor/core/plausibility.py): the reference report, the least
+ * and the most the obstacle ran since (1e-5 m, from the reported closing speeds), and `bad`
+ * while the channel is implausible. ref_dm == RG_NO_TRACK: no reference (not PRESENT). */
+typedef struct {
+    int32_t ref_dm;
+    int32_t last_closing;
+    int32_t bad;
+    int64_t ref_tick;
+    int64_t last_tick;
+    int64_t lo;
+    int64_t hi;
+} rg_plaus;
 
 /* A table file's bytes, checked by rg_table_check before the first step. */
 typedef struct {
@@ -176,6 +194,7 @@ typedef struct {
     int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
     int32_t kept;           /* an obstacle in sight and closing keeps what is held (keep_held) */
     int32_t track_strong;   /* confirmed or seen by two modules at once: forget_ms, not forget_single_ms */
+    rg_plaus plaus[RG_MAX_CHANNELS];  /* per channel: plausibility of its reports over time */
 } rg_state;
 
 /* The remembered obstacle as rg_observe updates it (the track_* fields of rg_state). */
@@ -263,6 +282,8 @@ void rg_step(const rg_config *cfg, const rg_table *table, rg_state *state,
  * the track's least position and the sensor range (Python: in_range and passed, computed
  * from them in cycle.py), returns the evidence count and writes the track state;
  * rg_track_dm is memory.distance_dm. */
+void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t closing_cms, int64_t tick,
+                     int32_t accuracy_dm, int32_t accuracy_cms, int32_t window_ms);
 int32_t rg_in_range(int32_t status, int32_t distance_dm, int32_t closing_cms, int32_t obstacle);
 int32_t rg_is_fresh(int64_t received, int64_t now, int64_t timeout_ticks);
 int32_t rg_effective_status(const rg_report *r, int64_t now, int64_t timeout_ticks);

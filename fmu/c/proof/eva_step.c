@@ -55,6 +55,9 @@ static void any_config(rg_config *c)
     c->forget_ms = Frama_C_interval(1, 600000);
     c->sensor_range_dm = Frama_C_interval(1, 60000);
     c->forget_single_ms = Frama_C_interval(1, 600000);
+    c->distance_accuracy_dm = Frama_C_interval(0, 60000);
+    c->closing_accuracy_cms = Frama_C_interval(0, 15000);
+    c->plausibility_ms = Frama_C_interval(1, 60000);
 }
 
 static void shipped_table(rg_table *t)
