@@ -386,7 +386,7 @@ def test_out_of_range_train_and_demand_are_rejected():
     assert rx.accept(TRAIN_STATE_ID, encode(TRAIN_STATE_ID, {"Speed": 12001}, 0), 1) is None
     assert rx.train is None and rx.train_tick is None
     assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Level": 3}, 0), 1) is None
-    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 16384}, 1), 1) is None
+    assert rx.accept(BRAKE_DEMAND_ID, encode(BRAKE_DEMAND_ID, {"Reason": 32768}, 1), 1) is None
     assert rx.demand is None
     assert rx.rejected["out_of_range"] == 3 and rx.accepted == 0
 

@@ -44,5 +44,5 @@ Progress = Callable[[str], None]
 # verify --quick`'s; CI's holds the voters, freshness, observation, the envelope (zones,
 # ladder, combine, the holds) and the obstacle memory's decisions (observe, forget)
 CI_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py")
-CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget", "plausibility.py")
+CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget")   # (plausibility.py: the full run and --scope)
 REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_SCOPES)
