@@ -38,6 +38,11 @@ def slack(accuracy_dm: int, accuracy_cms: int, span_ms: int) -> int:
     return 2 * accuracy_dm * UNITS_PER_DM + accuracy_cms * span_ms
 
 
+def anchor(distance_dm: int, closing_cms: int, tick: int, bad: int) -> tuple:
+    """A new reference at this report: nothing run since it yet, the fault as given."""
+    return (distance_dm, tick, tick, closing_cms, 0, 0, bad)
+
+
 def check(prev: tuple[int, int, int, int, int, int, int], present: bool, distance_dm: int, closing_cms: int, tick: int,
           accuracy_dm: int, accuracy_cms: int, window_ms: int) -> tuple:
     """The channel's plausibility state after this cycle's report; its last field is 1 while
@@ -58,21 +63,21 @@ def check(prev: tuple[int, int, int, int, int, int, int], present: bool, distanc
     ref, ref_tick, last_tick, last_closing, lo, hi, bad = prev
     bad = 1 if bad else 0
     if ref == NO_REF:
-        return (distance_dm, tick, tick, closing_cms, 0, 0, bad)
+        return anchor(distance_dm, closing_cms, tick, bad)
     if tick == last_tick:
         return prev
     dt = tick - last_tick
     if dt < 0 or dt > window_ms:          # out of order or a gap: no evidence either way
-        return (distance_dm, tick, tick, closing_cms, 0, 0, bad)
+        return anchor(distance_dm, closing_cms, tick, bad)
     lo += (closing_cms if closing_cms < last_closing else last_closing) * dt
     hi += (closing_cms if closing_cms > last_closing else last_closing) * dt
     span = tick - ref_tick
     tolerance = slack(accuracy_dm, accuracy_cms, span)
     d, r = distance_dm * UNITS_PER_DM, ref * UNITS_PER_DM
     if d > r - lo + tolerance:            # farther than the obstacle can be: implausible
-        return (distance_dm, tick, tick, closing_cms, 0, 0, 1)
+        return anchor(distance_dm, closing_cms, tick, 1)
     if d < r - hi - tolerance:            # nearer than it can be: something new in front
-        return (distance_dm, tick, tick, closing_cms, 0, 0, bad)
+        return anchor(distance_dm, closing_cms, tick, bad)
     if span >= window_ms:                 # a whole window that agrees: plausible again
-        return (distance_dm, tick, tick, closing_cms, 0, 0, 0)
+        return anchor(distance_dm, closing_cms, tick, 0)
     return (ref, ref_tick, tick, closing_cms, lo, hi, bad)
