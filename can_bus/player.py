@@ -66,11 +66,12 @@ class Player:
         self.frozen: dict = {}
 
     # ------------------------------------------------------------------ world
-    def obstacle_distance(self) -> Optional[tuple[float, object]]:
-        """(distance, spec) of the nearest obstacle on the track, None if none."""
+    def obstacle_distance(self, ch: Optional[int] = None) -> Optional[tuple[float, object]]:
+        """(distance, spec) of the nearest obstacle on the track (that channel `ch` can see, if
+        given: a sensor reports the nearest object it sees), None if none."""
         best = None
         for o in self.scenario.obstacles:
-            if not o.there(self.t):
+            if not (o.there(self.t) if ch is None else o.seen_by(self.t, ch)):
                 continue
             pos = o.position_m + o.speed_mps * (self.t - o.appear_s)
             d = pos - self.position
@@ -108,7 +109,7 @@ class Player:
     # ------------------------------------------------------------------ sensors
     def true_report(self, ch: int, tick: int) -> Report:
         s = self.scenario.sensors
-        near = self.obstacle_distance()
+        near = self.obstacle_distance(ch)
         if near is None or near[0] > s.range_m or near[0] < 0:
             return Report(ABSENT, 0, 0, 0, tick)
         d, spec = near

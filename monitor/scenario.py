@@ -112,10 +112,20 @@ class ObstacleSpec:
     speed_mps: float = 0.0              # along the track, positive in the train's direction (< 0: oncoming)
     type: str = "static"
     leave_s: float = FOREVER_S          # it leaves the track then (after the train's entry; FOREVER_S: never)
+    # hidden from these channels from hidden_from_s until hidden_until_s (a curve, a cutting, a
+    # low-reflecting object): they see past it, to the next obstacle or none; the train still hits it
+    hidden_from_s: float = FOREVER_S
+    hidden_until_s: float = FOREVER_S
+    hidden_channels: tuple = (0, 1, 2, 3, 4, 5)
 
     def there(self, t: float) -> bool:
         """On the track at `t` seconds after the train's entry: from appear_s until leave_s."""
         return self.appear_s <= t < self.leave_s
+
+    def seen_by(self, t: float, ch: int) -> bool:
+        """On the track at `t` and not hidden from channel `ch` then."""
+        hidden = self.hidden_from_s <= t < self.hidden_until_s and ch in self.hidden_channels
+        return self.there(t) and not hidden
 
 
 @dataclass(frozen=True)
@@ -177,6 +187,7 @@ LIMITS = {
     "davis_b_n_per_mps": (0.0, 1e6), "davis_c_n_per_mps2": (0.0, 1e5), "slippery_factor": (0.0, 1.0),
     "degraded_factor": (0.0, 1.0),
     "position_m": (0.0, 100000.0), "appear_s": (0.0, 86400.0), "leave_s": (0.0, FOREVER_S),
+    "hidden_from_s": (0.0, FOREVER_S), "hidden_until_s": (0.0, FOREVER_S), "hidden_channel": (0, 5),
     "obstacle_speed_mps": (-120.0, 120.0),
     "range_m": (0.0, 6000.0), "noise_sigma_m": (0.0, 1000.0), "miss_probability": (0.0, 1.0),
     "seed": (0, 2**31 - 1), "channel": (0, 5), "start_s": (0.0, 86400.0), "end_s": (0.0, FOREVER_S),
@@ -266,14 +277,28 @@ class _Reader:
         for key, value in data.items():
             if key == "type":
                 out[key] = self.string(where, key, value, OBSTACLE_TYPES)
+            elif key == "hidden_channels":
+                out[key] = self.channels(where, key, value)
             else:
                 out[key] = self.number(where, key, value, "obstacle_speed_mps" if key == "speed_mps" else None,
                                        open_low=key == "position_m")
         return self.leaves_after_appearing(where, ObstacleSpec(**out))
 
+    def channels(self, where: str, key: str, value) -> tuple:
+        """A non-empty list of distinct channels 0..5."""
+        if not isinstance(value, (list, tuple)) or not value:
+            self.fail(f"{where}.{key}", f"must be a non-empty list of channels 0..5, got {value!r}")
+        out = tuple(self.number(where, key, v, "hidden_channel", integer=True) for v in value)
+        if len(set(out)) != len(out):
+            self.fail(f"{where}.{key}", f"names a channel twice: {list(out)}")
+        return out
+
     def leaves_after_appearing(self, where: str, o: ObstacleSpec) -> ObstacleSpec:
         if o.leave_s <= o.appear_s:
             self.fail("", f"{where}.leave_s = {o.leave_s:g}: must be after appear_s = {o.appear_s:g}")
+        if o.hidden_until_s <= o.hidden_from_s and o.hidden_from_s != FOREVER_S:
+            self.fail("", f"{where}.hidden_until_s = {o.hidden_until_s:g}: must be after hidden_from_s = "
+                          f"{o.hidden_from_s:g}")
         return o
 
     def sensors(self, data) -> SensorSpec:
@@ -455,6 +480,9 @@ def check(scen: Scenario) -> None:
         r.number(f"obstacles[{i}]", "appear_s", o.appear_s)
         r.number(f"obstacles[{i}]", "leave_s", o.leave_s)
         r.number(f"obstacles[{i}]", "speed_mps", o.speed_mps, "obstacle_speed_mps")
+        r.number(f"obstacles[{i}]", "hidden_from_s", o.hidden_from_s)
+        r.number(f"obstacles[{i}]", "hidden_until_s", o.hidden_until_s)
+        r.channels(f"obstacles[{i}]", "hidden_channels", o.hidden_channels)
         r.leaves_after_appearing(f"obstacles[{i}]", o)
     s = scen.sensors
     r.number("sensors", "range_m", s.range_m, open_low=True)
@@ -521,6 +549,8 @@ def refusal(scen: Scenario, player: str) -> Optional[str]:
             return "obstacles[1]: the train FMU has one obstacle; cosim plays scenarios with at most one"
         if scen.obstacles and scen.obstacles[0].appear_s != 0.0:
             return "obstacles[0].appear_s: the train FMU's obstacle is there from the start; cosim plays appear_s = 0 only"
+        if scen.obstacles and scen.obstacles[0].hidden_from_s != FOREVER_S:
+            return "obstacles[0].hidden_from_s: the train FMU's sensors always see its obstacle; cosim plays no hidden one"
         if len(scen.faults) > 1:
             return "faults[1]: the train FMU injects one fault; cosim plays scenarios with at most one"
         for i, f in enumerate(scen.faults):
@@ -543,6 +573,8 @@ def refusal(scen: Scenario, player: str) -> Optional[str]:
         for i, o in enumerate(scen.obstacles):
             if o.leave_s != FOREVER_S:
                 return f"obstacles[{i}].leave_s: the campaign's obstacles stay on the track; it plays no leave_s"
+            if o.hidden_from_s != FOREVER_S:
+                return f"obstacles[{i}].hidden_from_s: the campaign's faults hide obstacles; it plays no hidden_from_s"
         if monitor_parameters(scen):
             return f"{'braking' if scen.braking is not None else 'monitor'}: the campaign configures the monitor with --braking"
         return None

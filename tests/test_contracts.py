@@ -4,6 +4,11 @@ Exit code 0 alone proves nothing (CrossHair exits 0 on "not confirmed" and on fi
 no contracts, DESIGN.md section 9), so the test reads the report line by line: every
 `post:` line of every expected function must be reported "Confirmed over all paths".
 Two planted bugs show that the check can fail.
+
+"Not confirmed" is not a counterexample: it means CrossHair ran out of budget on some path
+(its Z3 queries have a wall-clock timeout, so a loaded CI machine can run out where an idle one
+does not; this happened once on plausibility.py). Such a file is checked again on its own with
+a larger budget, and only what that run confirms counts; an error fails at once.
 """
 from __future__ import annotations
 
@@ -23,7 +28,7 @@ EXPECTED = {
     "voter.py": {"vote_2oo2", "disagreement", "distances_disagree", "vote_3oo3", "vote_single"},
     "freshness.py": {"in_range", "is_fresh", "effective_status"},
     "envelope.py": {"zone", "supervision_demand", "combine", "hold", "keep_held", "table_hold"},
-    "memory.py": {"accel_run", "near_travel", "far_travel", "observe", "forget", "distance_dm"},
+    "memory.py": {"accel_run", "near_travel", "far_travel", "observe", "seen_beyond", "forget", "distance_dm"},
     "braking.py": {"scaled_decel_mms2", "effective_decel_mms2", "run_dm", "speed_after_cms", "band_stop",
                    "obstacle_run_dm"},
     "config.py": {"gradient_accel_mms2"},
@@ -32,6 +37,7 @@ EXPECTED = {
     "plausibility.py": {"slack", "check"},
 }
 ARGS = ["check", "--analysis_kind=PEP316,asserts", "--per_condition_timeout=10", "--report_all"]
+RETRY_BUDGET = ["--per_condition_timeout=60", "--per_path_timeout=20"]
 
 
 def crosshair_command() -> list[str]:
@@ -43,9 +49,18 @@ def crosshair_command() -> list[str]:
     return [exe]
 
 
-def run_crosshair(files: list[Path], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(crosshair_command() + ARGS + [str(f) for f in files], cwd=cwd,
+def run_crosshair(files: list[Path], cwd: Path, budget: list[str] = ()) -> subprocess.CompletedProcess:
+    return subprocess.run(crosshair_command() + ARGS + list(budget) + [str(f) for f in files], cwd=cwd,
                           capture_output=True, text=True, timeout=600)
+
+
+def confirmed_lines(stdout: str) -> set[tuple[str, int]]:
+    confirmed = set()
+    for line in stdout.splitlines():
+        m = re.match(r"(.+?):(\d+): info: Confirmed over all paths\.", line)
+        if m:
+            confirmed.add((Path(m.group(1)).name, int(m.group(2))))
+    return confirmed
 
 
 def post_lines(path: Path) -> dict[int, str]:
@@ -64,16 +79,16 @@ def post_lines(path: Path) -> dict[int, str]:
 def test_every_contract_is_confirmed_over_all_paths():
     files = [CORE / name for name in EXPECTED]
     result = run_crosshair(files, ROOT)
-    confirmed = set()
-    for line in result.stdout.splitlines():
-        m = re.match(r"(.+?):(\d+): info: Confirmed over all paths\.", line)
-        if m:
-            confirmed.add((Path(m.group(1)).name, int(m.group(2))))
+    confirmed = confirmed_lines(result.stdout)
     assert "error" not in result.stdout, result.stdout
     for name, functions in EXPECTED.items():
         lines = post_lines(CORE / name)
         assert functions <= set(lines.values()), f"{name}: functions without post-conditions: {functions - set(lines.values())}"
         missing = [(no, fn) for no, fn in lines.items() if (name, no) not in confirmed]
+        if missing:                       # inconclusive, not false: once more, alone, with more budget
+            retry = run_crosshair([CORE / name], ROOT, RETRY_BUDGET)
+            assert "error" not in retry.stdout, retry.stdout
+            missing = [(no, fn) for no, fn in missing if (name, no) not in confirmed_lines(retry.stdout)]
         assert not missing, f"{name}: not confirmed over all paths: {missing}\n{result.stdout}"
 
 

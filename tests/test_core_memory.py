@@ -8,7 +8,7 @@ import pytest
 
 from monitor.core.braking import curves, ebi_dm
 from monitor.core.config import Config, forget_cycles, gradient_accel_mms2
-from monitor.core.memory import UNITS_PER_DM, near_travel
+from monitor.core.memory import UNITS_PER_DM, near_travel, seen_beyond
 from monitor.core.types import (
     ABSENT, DEGRADED, EMERGENCY, MAINTAIN, NO_DISTANCE, PRESENT, R_ENVELOPE, R_LATCH, R_MEMORY, SERVICE, STATIC,
     TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Report,
@@ -151,6 +151,84 @@ def test_a_disputed_sighting_never_creates_a_track_and_a_farther_one_never_hides
     assert out.track_dm == 1200
     out = d.present(2500, 0)                              # every module sees it farther: replaced
     assert out.track_dm == 2500 and not out.reasons & R_MEMORY
+
+
+def test_a_farther_obstacle_seen_by_every_module_is_evidence_against_the_nearer_one_not_a_replacement():
+    """Issue 38 item 2: A at 300 m (inside the 400 m declared sensor range) is seen, lost in a blind cycle (the channels drop their
+    plausibility references), then every channel reports B at 2,000 m. The sensors report their
+    nearest object, so B is evidence that A is gone, confirmed as ABSENT is: the memory keeps
+    A (its curves supervise beside B's, reason memory) for forget_ms of such cycles, then takes
+    B. Within the two reports' declared accuracy a farther sighting is A measured again."""
+    cfg = Config()
+    n = forget_cycles(cfg)
+    d = normal_driver(cfg, M2)
+    firm(d, 3000, 0, cycles=2)
+    out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), 0)   # blind
+    assert out.track_state == TRACK_HELD and 2990 <= out.track_dm <= 3000
+    for k in range(n - 1):
+        out = d.present(20000, 0)
+        assert out.distance_dm == 20000 and not out.system_error, k
+        assert out.track_state == TRACK_CONFIRMING and 2990 <= out.track_dm <= 3000 and out.reasons & R_MEMORY, k
+    out = d.present(20000, 0)
+    assert out.track_state == TRACK_SEEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
+    # a blind or disputed cycle between B's sightings restarts the evidence, as for ABSENT
+    d = normal_driver(cfg, M2)
+    firm(d, 3000, 0, cycles=2)
+    d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), 0)
+    for _ in range(n - 1):
+        d.present(20000, 0)
+    out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), 0)
+    assert out.track_state == TRACK_HELD
+    out = d.present(20000, 0)
+    assert out.track_state == TRACK_CONFIRMING and out.track_dm <= 3000
+    # farther by the two reports' accuracy (2 x 50 m) at most: the same obstacle, taken at once
+    d = normal_driver(cfg, M2)
+    firm(d, 3000, 0, cycles=2)
+    out = d.present(3000 + 2 * cfg.distance_accuracy_dm, 0)
+    assert out.track_state == TRACK_SEEN and out.track_dm == 3000 + 2 * cfg.distance_accuracy_dm
+
+
+def test_seen_beyond_is_strictly_farther_than_the_track_plus_two_accuracies():
+    """memory.seen_beyond to the unit: no track, no evidence; exactly on far + 2 x accuracy the
+    same obstacle; one unit (1e-5 m) beyond it, evidence."""
+    far = 3000 * UNITS_PER_DM
+    assert not seen_beyond(-1, -1, 100, 0) and not seen_beyond(-1, -1, 60000, 500)
+    assert not seen_beyond(far, far, 4000, 500)                    # 40,000,000 units: exactly on it
+    assert seen_beyond(far, far - 1, 4000, 500)                    # one unit beyond
+    assert seen_beyond(far, far, 4001, 500)                        # a dm beyond (not at 3 x accuracy)
+
+
+def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_itself():
+    """Once B replaces the forgotten A it is a track like any other: seen (no memory reason),
+    predicted from B's own closing speed (a static obstacle: the train's worst-case travel)."""
+    cfg = Config(forget_ms=300)
+    n = forget_cycles(cfg)
+    d = normal_driver(cfg, M2)
+    firm(d, 3000, V, cycles=1)
+    d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), V)
+    for _ in range(n - 1):
+        assert d.present(20000, V).track_state == TRACK_CONFIRMING
+    out = d.present(20000, V)
+    assert out.track_state == TRACK_SEEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
+    step = near_travel(V, cfg.speed_error_permille, accel(cfg), 0, cfg.period_ms)   # (reported closing 0)
+    out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), V)
+    assert out.track_dm == (20000 * UNITS_PER_DM - step) // UNITS_PER_DM and out.track_state == TRACK_HELD
+
+
+def test_a_disputed_sighting_the_track_took_keeps_the_track_s_own_curves():
+    """A track remembers the fastest closing speed it was seen with. A disputed sighting (one
+    channel ABSENT) that the track takes moves its position but not that speed, so the
+    remembered obstacle's curves (oncoming) still supervise beside the voted one's (reported
+    static): between the two EBIs it is an emergency."""
+    cfg = Config()
+    oncoming = V + 2000                                   # the obstacle closes at 20 m/s of its own
+    static, fast = curves(cfg, V, 0, 0, V, 0).ebi_dm, curves(cfg, V, 0, 0, oncoming, 0).ebi_dm
+    assert static + 1 < fast
+    d = normal_driver(cfg, M1)
+    firm(d, fast + 2000, V, closing=oncoming, cycles=1)
+    out = d.cycle(with_channel(present(d.tick, static + 1, closing=V), 0, Report(ABSENT, 0, 0, STATIC, d.tick)), V)
+    assert out.track_state == TRACK_SEEN and out.track_dm == static + 1 and out.system_error
+    assert out.demand == EMERGENCY and out.reasons & R_ENVELOPE
 
 
 def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():

@@ -38,7 +38,8 @@ from monitor.core.config import check, forget_cycles, gradient_accel_mms2
 from monitor.core.freshness import channel_status
 from monitor.core.memory import UNITS_PER_DM, far_travel, near_travel
 from monitor.core.types import (ABSENT, DEGRADED, MAX_DISTANCE_DM, NO_DISTANCE, NO_TRACK, PRESENT, R_DISPUTE,
-                                R_ENVELOPE, R_LATCH, R_MEMORY, R_PERCEPTOR, R_STALE, TRACK_CONFIRMING, TRACK_FORGOTTEN,
+                                R_ENVELOPE, R_IMPLAUSIBLE, R_LATCH, R_MEMORY, R_PERCEPTOR, R_STALE, TRACK_CONFIRMING,
+                                TRACK_FORGOTTEN,
                                 TRACK_HELD, TRACK_PASSED, TRACK_SEEN)
 from monitor.core.voter import disagreement
 from monitor.tables import read
@@ -532,6 +533,11 @@ def coverage_probe(seen: Counter, setup):
             and out.distance_dm * UNITS_PER_DM > before.track_near)
         seen["disputed farther sighting kept the track"] += (out.distance_dm != NO_DISTANCE
                                                              and out.reasons & R_MEMORY != 0)
+        # issue 38 item 2: a confirmed sighting farther than the track can be is evidence against it
+        beyond = (out.distance_dm != NO_DISTANCE and before.track_near != NO_TRACK and not out.system_error
+                  and out.distance_dm * UNITS_PER_DM > before.track_far + 2 * cfg.distance_accuracy_dm * UNITS_PER_DM)
+        seen["a farther confirmed sighting counted against the track"] += beyond and out.track_state == TRACK_CONFIRMING
+        seen["the farther sighting taken once the track is forgotten"] += beyond and out.track_state == TRACK_SEEN
         seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
         # issue 38 item 3: plausibility
         n = cfg.channels
@@ -626,7 +632,9 @@ EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance 
          # what any module saw is remembered (issue 38 item 1)
          "track created by a disputed picture", "weak track made strong by a second module",
          "weak track forgotten after exactly forget_single_ms", "weak track one cycle short of forgotten",
-         "a module's sighting between near and far took the track")
+         "a module's sighting between near and far took the track",
+         # a farther sighting is evidence, not a replacement (issue 38 item 2)
+         "a farther confirmed sighting counted against the track", "the farther sighting taken once the track is forgotten")
 KINDS = ("band 2 on", "band 3 on", "one band", "release at standstill", "revocable release", "gradient > 0",
          "slippery < 1000", "2oo2", "speed error > 0", "FMU start values")
 
@@ -737,6 +745,54 @@ def test_the_memory_s_roundings_agree_to_the_unit(monitor_drivers):
         outs = [ref.step(inp, c)[-1] for inp, c in steps]
         assert [(o.track_dm, o.track_state) for o in outs[1:]] == want, params
         _check(monitor_drivers[("m1", 2)], table, params, steps)
+
+
+# (first sighting dm, speed cm/s, second sighting dm, its track state): a track seen once, a
+# blind cycle (its far moves by the train's least travel, speed x 100 ms), then every channel
+# farther; by more than 2 x 50 m of declared accuracy it is evidence against the track
+# (confirming), by that much or less the track measured again (seen). Each decided by one
+# unit (1e-5 m) or one rounding of memory.seen_beyond
+BEYOND_STORIES = ((30000, 95, 31000, TRACK_CONFIRMING),   # 9,500 units beyond: the distance x 10,000 exact
+                  (3000, 5, 4000, TRACK_CONFIRMING),      # 500 units beyond the accuracy
+                  (3000, 0, 4000, TRACK_SEEN))            # exactly on it: the same obstacle
+
+
+def test_a_farther_sighting_s_boundary_agrees_to_the_unit(monitor_drivers):
+    """Issue 38 item 2 (mutation testing of rg_seen_beyond): each story's last cycle sits
+    within one unit of the boundary between evidence and the same obstacle."""
+    table = read("m1")
+    params = {"speed_error_permille": 0, "max_accel_mms2": 0, "max_gradient_permille": 0,
+              "sensor_range_dm": 60000, "distance_accuracy_dm": 500}
+    blind = ChannelInput(2, 0.0, 0.0, 0, True)
+    for first, speed, second, want in BEYOND_STORIES:
+        steps = [(StepInput((CLEAR,) * 6, speed_mps(speed)), 1),
+                 (StepInput((ChannelInput(1, metres(first), closing_mps(speed), 0, True),) * 6, speed_mps(speed)), 1),
+                 (StepInput((blind,) * 6, speed_mps(speed)), 1),
+                 (StepInput((ChannelInput(1, metres(second), closing_mps(speed), 0, True),) * 6, speed_mps(speed)), 1)]
+        ref = MonitorReference(table, params)
+        outs = [ref.step(inp, c)[-1] for inp, c in steps]
+        assert (outs[-1].distance_dm, outs[-1].track_state) == (second, want), (first, speed, second, outs[-1])
+        _check(monitor_drivers[("m1", 2)], table, params, steps)
+
+
+def test_a_freeze_after_minutes_of_running_is_found_in_c_too(monitor_drivers):
+    """The generated sequences last under a minute; a reference's age is measured from the
+    tick, so a freeze after 130 s of running (ticks beyond two plausibility windows) is
+    compared too: every channel approaches at 30 m/s, then sticks; the reference finds it
+    implausible, and C must agree cycle by cycle."""
+    table = read("m2")
+    speed = 3000
+    steps = [(StepInput((CLEAR,) * 6, 0.0), 1300)]
+    d = 20000
+    for k in range(80):
+        shown = d if k < 10 else 20000 - 9 * 30
+        steps.append((StepInput((ChannelInput(1, metres(shown), closing_mps(speed), 0, True),) * 6,
+                                speed_mps(speed)), 1))
+        d -= 30
+    ref = MonitorReference(table, {})
+    outs = [ref.step(inp, c)[-1] for inp, c in steps]
+    assert any(o.reasons & R_IMPLAUSIBLE for o in outs), "the reference never found the freeze"
+    _check(monitor_drivers[("m2", 2)], table, {}, steps)
 
 
 def test_a_known_sequence_goes_through_every_mode(monitor_drivers):

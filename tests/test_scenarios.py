@@ -80,6 +80,11 @@ def test_wrong_types_are_refused(tmp_path, text, match):
     ("[[obstacles]]\nappear_s = 5.0\nleave_s = 5.0\n", r"obstacles\[0\].leave_s = 5: must be after appear_s = 5"),
     ("[[obstacles]]\nposition_m = 400\n[[obstacles]]\nappear_s = 5.0\nleave_s = 2.0\n",
      r"obstacles\[1\].leave_s = 2: must be after appear_s = 5"),
+    ("[[obstacles]]\nhidden_from_s = 5.0\nhidden_until_s = 5.0\n",
+     r"obstacles\[0\].hidden_until_s = 5: must be after hidden_from_s = 5"),
+    ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = [0, 6]\n", r"obstacles\[0\].hidden_channels = 6: must be in \[0, 5\]"),
+    ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = []\n", r"obstacles\[0\].hidden_channels: must be a non-empty list"),
+    ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = [2, 2]\n", r"obstacles\[0\].hidden_channels: names a channel twice"),
     ("[[faults]]\nkind = 'silence'\nchannel = 1\nstart_s = 5.0\nend_s = 2.0\n", "end_s = 2 must be after start_s"),
     ("[[faults]]\nkind = 'silence'\nstart_s = 5.0\n", "needs a channel"),
     ("[[faults]]\nkind = 'blind'\nchannel = 2\nstart_s = 5.0\n", "every channel"),
@@ -141,6 +146,32 @@ def test_an_obstacle_leaves_the_track_at_leave_s(tmp_path):
     with pytest.raises(sc.ScenarioError, match=r"obstacles\[0\].leave_s = 0: must be after appear_s = 0") as exc:
         sc.check(replace(now, obstacles=(replace(o, appear_s=0.0, leave_s=0.0),)))
     assert "\n" not in str(exc.value)
+
+
+def test_a_hidden_obstacle_is_on_the_track_but_not_seen_by_the_channels_it_hides_from(tmp_path):
+    """hidden_from_s, hidden_until_s, hidden_channels (issue 38 item 2): the channels it hides
+    from see past it, to the next obstacle; the others and the train's collision still see it.
+    run plays it (the player's sensors report the nearest obstacle each channel sees), cosim
+    and the campaign refuse it in one line."""
+    from can_bus.player import Player
+
+    s = sc.load(write(tmp_path, "[[obstacles]]\nposition_m = 400\nhidden_from_s = 1.0\nhidden_until_s = 3.0\n"
+                                "hidden_channels = [0, 1]\n[[obstacles]]\nposition_m = 900\n[sensors]\nrange_m = 2000\n"
+                                "noise_sigma_m = 0\n"))
+    a, b = s.obstacles
+    assert (a.hidden_from_s, a.hidden_until_s, a.hidden_channels) == (1.0, 3.0, (0, 1))
+    assert [a.seen_by(t, 0) for t in (0.9, 1.0, 2.9, 3.0)] == [True, False, False, True]
+    assert all(a.seen_by(t, 2) and a.there(t) for t in (0.9, 1.0, 2.9, 3.0))
+    assert b.hidden_channels == (0, 1, 2, 3, 4, 5) and b.seen_by(1.5, 0)
+    assert sc.players(s) == ("run",)
+    one = sc.load(write(tmp_path, "[[obstacles]]\nposition_m = 400\nhidden_from_s = 1.0\n[campaign]\n", "one.toml"))
+    assert sc.refusal(one, "cosim").startswith("obstacles[0].hidden_from_s: the train FMU's sensors always see")
+    assert sc.refusal(one, "campaign").startswith("obstacles[0].hidden_from_s: the campaign's faults hide")
+    player = Player.__new__(Player)
+    player.scenario, player.position, player.t = s, 0.0, 2.0
+    assert player.obstacle_distance(0)[0] == 900.0 and player.obstacle_distance(2)[0] == 400.0
+    assert player.obstacle_distance()[0] == 400.0                    # what the train runs into
+    sc.check(s)
 
 
 def test_monitor_and_braking_become_one_configuration(tmp_path):

@@ -283,8 +283,9 @@ class VectorMonitor:
 
     def _memory(self, present, confirmed, several, dist, speed, toward, own, age, stale) -> tuple:
         """Step 4 of the cycle: the track after this cycle's picture (memory.observe and
-        forget). A confirmed picture creates or replaces the track, a disputed one (some
-        module sees it) creates it or brings it nearer; ABSENT with every channel fresh is
+        forget). A confirmed picture creates or replaces the track (farther than it can be,
+        it is evidence that the track is gone and replaces it once forgotten), a disputed one
+        (some module sees it) creates it or brings it nearer; ABSENT with every channel fresh is
         evidence that it is gone, for forget_cycles if the track is strong (confirmed or
         `several` modules saw it), else for forget_single. (t_state, remembered, far, t_age): the TRACK_* state,
         whether the track's curves supervise it beside the voted obstacle's, the far position
@@ -292,36 +293,40 @@ class VectorMonitor:
         the sighting the track took this cycle (0 if it kept its position)."""
         cfg = self.cfg
         had = self.near != NO_TRACK
-        lost = ~present & had
         units = dist * UNITS_PER_DM
+        # a confirmed sighting beyond where the track can be (by more than two reports' declared
+        # accuracy) is evidence that the track is gone, as ABSENT is; B replaces it once forgotten
+        beyond = present & confirmed & had & (units > self.far + 2 * cfg.distance_accuracy_dm * UNITS_PER_DM)
+        lost = (~present & had) | beyond              # the track not seen this cycle
         # a sighting sets the position: confirmed, no track yet, nearer than the track or
         # where it can be (up to far: every present picture here is a module's sighting)
-        takes = present & (confirmed | ~had | (units <= np.maximum(self.near, self.far)))
-        held = present & ~takes                       # a farther disputed sighting: kept
+        takes = present & ~beyond & (confirmed | ~had | (units <= np.maximum(self.near, self.far)))
+        held = present & ~takes & ~beyond             # a farther disputed sighting: kept
         far = np.where(takes, units, np.where(lost, self.far - far_travel(speed, cfg.speed_error_permille,
                                                                           self.setup.track_accel, cfg.period_ms),
                                               self.far))
         passed = lost & (far < 0)
         evidence = lost & ~passed & ~stale & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
         count = self.track_absent + 1
-        strong = (had & self.strong) | confirmed | several
+        strong = (had & self.strong) | (~beyond & (confirmed | several))
         forgotten = evidence & (count >= np.where(strong, self.setup.forget_cycles, self.setup.forget_single))
         gone = passed | forgotten
         kept = lost & ~gone
-        t_state = np.select([takes, held, passed, forgotten, evidence, lost],
+        after = beyond & gone                         # B, seen by every module, is the track now
+        t_state = np.select([takes | after, held, passed, forgotten, evidence, lost],
                             [TRACK_SEEN, TRACK_HELD, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD],
                             TRACK_NONE)
         self.track_absent = np.where(evidence & ~forgotten, count, 0)
         self.track_cycles = np.where(kept | held, np.minimum(self.track_cycles + 1, MAX_COUNT), 0)
-        self.near = np.where(takes, units, np.where(gone, NO_TRACK, self.near))
-        self.far = np.where(gone, NO_TRACK, far)
-        self.strong = strong & ~gone
+        self.near = np.where(takes | after, units, np.where(gone, NO_TRACK, self.near))
+        self.far = np.where(after, units, np.where(gone, NO_TRACK, far))
+        self.strong = (strong & ~gone) | after
         own_closing = np.maximum(toward - own, 0)
-        self.track_closing = np.where(confirmed | (present & ~had), own_closing,
-                                      np.where(present, np.maximum(own_closing, self.track_closing),
+        self.track_closing = np.where((confirmed & ~beyond) | after | (present & ~had), own_closing,
+                                      np.where(present & ~beyond, np.maximum(own_closing, self.track_closing),
                                                np.where(gone, 0, self.track_closing)))
         remembered = kept | (present & ~confirmed)
-        return t_state, remembered, far, np.where(takes, age, 0)
+        return t_state, remembered, np.where(after, units, far), np.where(takes | after, age, 0)
 
     def _plausibility(self, sees: np.ndarray, dist, closing, report_tick) -> np.ndarray:
         """Step 1b of the cycle (plausibility.check) for each module's channels: `sees`

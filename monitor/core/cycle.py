@@ -17,7 +17,7 @@ from .braking import curves, ebi_dm
 from .config import RELEASE_REVOCABLE, forget_cycles, track_accel_mms2
 from .envelope import combine, hold, keep_held, supervision_demand, table_hold, zone
 from .freshness import channel_status
-from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe
+from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe, seen_beyond
 from .plausibility import NO_REFERENCE, check as plausibility_check
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .risk import CRITICAL, MAX_SCORE, PPM, r1_ppm, r2_ppm, risk_category, risk_score
@@ -191,7 +191,11 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms
     seeing = sum(statuses[2 * m] == PRESENT and statuses[2 * m + 1] == PRESENT for m in range(cfg.modules))
     strong = state.track_strong                     # (only ever set with a track)
-    if distance != NO_DISTANCE:
+    # a confirmed sighting farther than the remembered obstacle can be, beyond the two reports'
+    # declared accuracy: the sensors report their nearest object, so it is evidence that the
+    # remembered one is gone, confirmed as ABSENT is (forget), never an instant replacement
+    beyond = confirmed and seen_beyond(near, far, distance, cfg.distance_accuracy_dm)
+    if distance != NO_DISTANCE and not beyond:
         near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
                                               confirmed, seeing > 0)
         strong = strong or confirmed or seeing >= 2  # (a sighting that creates nothing is neither)
@@ -201,13 +205,17 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
             t_state = TRACK_SEEN
         else:                                       # a farther disputed sighting: the track was not seen
             t_state, t_cycles = TRACK_HELD, _inc(state.track_cycles)
-    elif near != NO_TRACK:
+    elif near != NO_TRACK:                          # the track not seen: evidence, or held
         far -= far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
-        evidence = sys_status == ABSENT and not sys_error and not stale
+        evidence = (beyond or sys_status == ABSENT and not sys_error) and not stale
         t_absent, t_state = forget(state.track_absent, evidence, far <= cfg.sensor_range_dm * UNITS_PER_DM,
                                    far < 0, setup.forget_cycles if strong else setup.forget_single)
         if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
             near, far, t_closing, strong = NO_TRACK, NO_TRACK, 0, False
+            if beyond:                              # gone: the farther sighting is the track now
+                near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
+                                                      confirmed, confirmed)
+                t_state, strong = TRACK_SEEN, confirmed
         else:
             t_cycles = _inc(state.track_cycles)
     else:
@@ -226,7 +234,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     else:
         z = 3 if sys_status == DEGRADED else 0
         env, warn = MAINTAIN, False
-    remembered = near != NO_TRACK and not confirmed
+    remembered = near != NO_TRACK and not (confirmed and near == distance * UNITS_PER_DM)
     if remembered:
         curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
         env_t, warn_t = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)

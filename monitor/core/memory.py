@@ -14,9 +14,11 @@ What is remembered follows the voter's safe side, not its unanimity: a picture i
 module sees the obstacle with both its channels creates the track (`observe`).
 
 The track is forgotten only on positive evidence: every module reports ABSENT, fresh and
-unanimous, for `forget_ms` while the remembered position lies inside the sensors' declared
-range (`sensor_range_dm`); or the train has passed the remembered position (its least
-possible travel took it beyond).
+unanimous, or every module sees something farther than the remembered obstacle can be
+(`seen_beyond`: the sensors report their nearest object), for `forget_ms` while the
+remembered position lies inside the sensors' declared range (`sensor_range_dm`); or the train
+has passed the remembered position (its least possible travel took it beyond). A farther
+sighting never replaces the track at once: it becomes the track once the old one is forgotten.
 
 Positions are integers in 1e-5 m, the unit of cm/s x ms, so that dead reckoning is exact:
 one period at v cm/s is v * period_ms units; `UNITS_PER_DM` of them make a decimetre.
@@ -114,6 +116,20 @@ def observe(near: int, far: int, closing: int, distance_dm: int, obstacle_cms: i
     if d <= near or (sighted and d <= far):
         return d, d, faster, age_now
     return near, far, faster, 0
+
+
+def seen_beyond(near: int, far: int, distance_dm: int, accuracy_dm: int) -> bool:
+    """Whether a confirmed sighting is evidence that the track is gone rather than the track
+    measured again (issue 38 item 2): farther than the remembered obstacle can be (`far`) by
+    more than the two reports' declared accuracy. The sensors report their nearest object, so
+    something seen beyond the remembered position says nothing is there: it counts as ABSENT
+    does (`forget`), and becomes the track once the old one is forgotten, never at once.
+
+    pre: near >= -1 and far >= -1 and 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
+    post: not __return__ or (near != -1 and distance_dm * 10000 > far)
+    post: __return__ or near == -1 or distance_dm * 10000 <= far + 2 * accuracy_dm * 10000
+    """
+    return near != NO_TRACK and distance_dm * UNITS_PER_DM > far + 2 * accuracy_dm * UNITS_PER_DM
 
 
 def forget(cycles_absent: int, evidence: bool, in_range: bool, passed: bool, forget_cycles: int) -> tuple[int, int]:

@@ -30,13 +30,15 @@ C_TESTS = ("tests/test_fmu_equivalence.py",)
 # the functions of rg_core.c that are mutated: freshness and range, the voters, the zones,
 # the supervision ladder, combine, the hold (the latch's successor), the table's hold, the
 # supervision of voted and remembered obstacle and the decision (issue 29), the obstacle
-# memory (prediction, observation, forgetting, the remembered distance) and the speed class
+# memory (prediction, observation, forgetting, the remembered distance), the speed class and
+# the plausibility check (issue 38)
 # (the decisions the Python-vs-C comparison must pin; the curve arithmetic, rg_step's
 # plumbing, the configuration and table checks and SHA-256 are not mutated yet)
 C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
                "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_hold",
                "rg_table_hold", "rg_supervised_demand", "rg_decide", "rg_accel_run", "rg_near_travel",
-               "rg_far_travel", "rg_observe", "rg_forget", "rg_track_dm", "speed_class", "rg_plausibility")
+               "rg_far_travel", "rg_observe", "rg_forget", "rg_seen_beyond", "rg_track_dm", "speed_class", "rg_plaus_anchor",
+               "rg_plaus_continues", "rg_plausibility")
 
 Progress = Callable[[str], None]
 
@@ -44,5 +46,5 @@ Progress = Callable[[str], None]
 # verify --quick`'s; CI's holds the voters, freshness, observation, the envelope (zones,
 # ladder, combine, the holds) and the obstacle memory's decisions (observe, forget)
 CI_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py")
-CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:forget")   # (plausibility.py: the full run and --scope)
+CI_SCOPES = CI_FILES + ("memory.py:observe", "memory.py:seen_beyond", "memory.py:forget")   # (plausibility.py: the full run and --scope)
 REPORT_QUICK_FILES = ("voter.py",)     # `railguard verify --quick`: the voters (tests/test_mutation.py runs CI_SCOPES)

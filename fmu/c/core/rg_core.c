@@ -891,6 +891,61 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
     return run > 0 ? run : 0;
 }
 
+#define RG_PLAUS_MAX_SPAN 120000   /* a reference is at most two windows old (window <= 60 s) */
+#define RG_PLAUS_MAX_RUN ((int64_t)RG_MAX_CLOSING_CMS * RG_PLAUS_MAX_SPAN)
+#define RG_PLAUS_MAX_TICK ((int64_t)1 << 61)
+
+/* A new reference at this report (plausibility.anchor): nothing run since it yet, the fault
+ * as given; at RG_NO_TRACK, tick 0, closing 0 and fault 0 it is the state before a sighting. */
+/*@ requires \valid(p);
+    assigns *p;
+    ensures p->ref_dm == distance_dm && p->ref_tick == tick && p->last_tick == tick;
+    ensures p->last_closing == closing_cms && p->lo == 0 && p->hi == 0 && p->bad == bad;
+*/
+void rg_plaus_anchor(rg_plaus *p, int32_t distance_dm, int32_t closing_cms, int64_t tick, int32_t bad)
+{
+    p->ref_dm = distance_dm;
+    p->ref_tick = tick;
+    p->last_tick = tick;
+    p->last_closing = closing_cms;
+    p->lo = 0;
+    p->hi = 0;
+    p->bad = bad;
+}
+
+/* Whether the channel's story goes on from its reference to a report at `tick`: a reference
+ * in range, the report after the last one and at most a window later, the reference at most
+ * two windows back (always so for a state rg_plausibility wrote: it continues only while the
+ * span is under one window). Anything else (a state no cycle produces, a gap, a report out of
+ * order, ticks beyond +-2^61 ms, 73 million years: the shells count from 0) is no evidence
+ * either way; the bounds keep the arithmetic of the check from overflowing. */
+/*@ requires \valid_read(p);
+    requires 1 <= window_ms <= 60000;
+    assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 ==> 0 <= p->ref_dm <= RG_MAX_DISTANCE_DM
+            && -RG_MAX_CLOSING_CMS <= p->last_closing <= RG_MAX_CLOSING_CMS
+            && -RG_PLAUS_MAX_RUN <= p->lo <= RG_PLAUS_MAX_RUN && -RG_PLAUS_MAX_RUN <= p->hi <= RG_PLAUS_MAX_RUN
+            && -RG_PLAUS_MAX_TICK <= tick <= RG_PLAUS_MAX_TICK
+            && -RG_PLAUS_MAX_TICK <= p->last_tick <= RG_PLAUS_MAX_TICK
+            && -RG_PLAUS_MAX_TICK <= p->ref_tick <= RG_PLAUS_MAX_TICK
+            && 0 <= tick - p->last_tick <= window_ms
+            && tick - p->last_tick <= tick - p->ref_tick <= RG_PLAUS_MAX_SPAN;
+*/
+int32_t rg_plaus_continues(const rg_plaus *p, int64_t tick, int32_t window_ms)
+{
+    int64_t dt, span;
+    if (tick < -RG_PLAUS_MAX_TICK || tick > RG_PLAUS_MAX_TICK || p->last_tick < -RG_PLAUS_MAX_TICK
+        || p->last_tick > RG_PLAUS_MAX_TICK || p->ref_tick < -RG_PLAUS_MAX_TICK || p->ref_tick > RG_PLAUS_MAX_TICK)
+        return 0;
+    dt = tick - p->last_tick;
+    span = tick - p->ref_tick;
+    return p->ref_dm >= 0 && p->ref_dm <= RG_MAX_DISTANCE_DM && p->last_closing >= -RG_MAX_CLOSING_CMS
+           && p->last_closing <= RG_MAX_CLOSING_CMS && p->lo >= -RG_PLAUS_MAX_RUN && p->lo <= RG_PLAUS_MAX_RUN
+           && p->hi >= -RG_PLAUS_MAX_RUN && p->hi <= RG_PLAUS_MAX_RUN && dt >= 0 && dt <= window_ms
+           && span >= dt && span <= RG_PLAUS_MAX_SPAN;
+}
+
 /* One channel's plausibility after this cycle's report (monitor/core/plausibility.py): a
  * PRESENT report farther than the reference less the least the obstacle ran (the lower of
  * each pair of reported closing speeds times the time between them), beyond the declared
@@ -898,11 +953,7 @@ int64_t rg_far_travel(int64_t speed_cms, int64_t error_permille, int64_t accel_m
  * span), makes the channel implausible until a whole window of its reports agrees again; a
  * report nearer than the most it ran is something new in front and starts a new reference;
  * a channel that is not PRESENT drops its reference and its fault. A state no cycle produces
- * (out-of-range fields, a tick behind or far ahead of the reference) starts a new reference
- * and keeps the fault: no evidence either way. */
-#define RG_PLAUS_MAX_SPAN 120000   /* a reference is at most two windows old (window <= 60 s) */
-#define RG_PLAUS_MAX_RUN ((int64_t)RG_MAX_CLOSING_CMS * RG_PLAUS_MAX_SPAN)
-#define RG_PLAUS_MAX_TICK ((int64_t)1 << 61)
+ * (rg_plaus_continues) starts a new reference and keeps the fault: no evidence either way. */
 /*@ requires \valid(p);
     requires 0 <= distance_dm <= 60000 && -15000 <= closing_cms <= 15000;
     requires 0 <= accuracy_dm <= 60000 && 0 <= accuracy_cms <= 15000 && 1 <= window_ms <= 60000;
@@ -921,13 +972,7 @@ void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t 
     int32_t bad;
     int64_t dt, span, lo, hi, tolerance, d, r;
     if (!present) {
-        p->ref_dm = RG_NO_TRACK;
-        p->last_closing = 0;
-        p->bad = 0;
-        p->ref_tick = 0;
-        p->last_tick = 0;
-        p->lo = 0;
-        p->hi = 0;
+        rg_plaus_anchor(p, RG_NO_TRACK, 0, 0, 0);
         return;
     }
     bad = p->bad != 0;
@@ -935,53 +980,53 @@ void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t 
         p->bad = bad;    /* nothing new this cycle */
         return;
     }
-    /* a reference to go on from: in range, the newest report after the last one and at
-     * most a window later, the reference at most two windows back (always so for a state
-     * this function wrote: it continues only while the span is under one window). Ticks
-     * beyond +-2^61 ms (73 million years; the shells count from 0) start a new reference
-     * too, so that the differences below cannot overflow */
-    dt = 0;
-    span = 0;
-    if (tick >= -RG_PLAUS_MAX_TICK && tick <= RG_PLAUS_MAX_TICK && p->last_tick >= -RG_PLAUS_MAX_TICK
-        && p->last_tick <= RG_PLAUS_MAX_TICK && p->ref_tick >= -RG_PLAUS_MAX_TICK && p->ref_tick <= RG_PLAUS_MAX_TICK) {
-        dt = tick - p->last_tick;
-        span = tick - p->ref_tick;
-    } else {
-        dt = -1;
-    }
-    if (p->ref_dm < 0 || p->ref_dm > RG_MAX_DISTANCE_DM || p->last_closing < -RG_MAX_CLOSING_CMS
-        || p->last_closing > RG_MAX_CLOSING_CMS || p->lo < -RG_PLAUS_MAX_RUN || p->lo > RG_PLAUS_MAX_RUN
-        || p->hi < -RG_PLAUS_MAX_RUN || p->hi > RG_PLAUS_MAX_RUN || dt < 0 || dt > window_ms
-        || span < dt || span > RG_PLAUS_MAX_SPAN) {
-        p->ref_dm = distance_dm;
-        p->last_closing = closing_cms;
-        p->bad = bad;
-        p->ref_tick = tick;
-        p->last_tick = tick;
-        p->lo = 0;
-        p->hi = 0;
+    if (!rg_plaus_continues(p, tick, window_ms)) {
+        rg_plaus_anchor(p, distance_dm, closing_cms, tick, bad);
         return;
     }
+    /* (what rg_plaus_continues ensures, restated for EVA, which does not read contracts) */
+    /*@ assert hint_story: 0 <= p->ref_dm <= RG_MAX_DISTANCE_DM
+            && -RG_MAX_CLOSING_CMS <= p->last_closing <= RG_MAX_CLOSING_CMS
+            && -RG_PLAUS_MAX_RUN <= p->lo <= RG_PLAUS_MAX_RUN && -RG_PLAUS_MAX_RUN <= p->hi <= RG_PLAUS_MAX_RUN
+            && -RG_PLAUS_MAX_TICK <= tick <= RG_PLAUS_MAX_TICK
+            && -RG_PLAUS_MAX_TICK <= p->last_tick <= RG_PLAUS_MAX_TICK
+            && -RG_PLAUS_MAX_TICK <= p->ref_tick <= RG_PLAUS_MAX_TICK; */
+    dt = tick - p->last_tick;
+    span = tick - p->ref_tick;
+    /*@ assert hint_span: 0 <= dt <= window_ms && dt <= span <= RG_PLAUS_MAX_SPAN; */
     lo = p->lo + (int64_t)(closing_cms < p->last_closing ? closing_cms : p->last_closing) * dt;
     hi = p->hi + (int64_t)(closing_cms > p->last_closing ? closing_cms : p->last_closing) * dt;
     tolerance = 2 * (int64_t)accuracy_dm * RG_UNITS_PER_DM + (int64_t)accuracy_cms * span;
     d = (int64_t)distance_dm * RG_UNITS_PER_DM;
     r = (int64_t)p->ref_dm * RG_UNITS_PER_DM;
-    p->last_closing = closing_cms;
-    p->last_tick = tick;
-    if (d > r - lo + tolerance || d < r - hi - tolerance || span >= window_ms) {
-        /* farther than it can be: implausible; nearer: something new in front; a whole
-         * window that agrees: plausible again. Each starts a new reference */
-        p->bad = d > r - lo + tolerance ? 1 : (d < r - hi - tolerance ? bad : 0);
-        p->ref_dm = distance_dm;
-        p->ref_tick = tick;
-        p->lo = 0;
-        p->hi = 0;
+    if (d > r - lo + tolerance) {                       /* farther than it can be: implausible */
+        rg_plaus_anchor(p, distance_dm, closing_cms, tick, 1);
+    } else if (d < r - hi - tolerance) {                /* nearer: something new in front */
+        rg_plaus_anchor(p, distance_dm, closing_cms, tick, bad);
+    } else if (span >= window_ms) {                     /* a whole window that agrees: plausible again */
+        rg_plaus_anchor(p, distance_dm, closing_cms, tick, 0);
     } else {
+        p->last_closing = closing_cms;
+        p->last_tick = tick;
         p->bad = bad;
         p->lo = lo;
         p->hi = hi;
     }
+}
+
+/* Whether a confirmed sighting is evidence that the track is gone rather than the track
+ * measured again (memory.seen_beyond): farther than the remembered obstacle can be (far) by
+ * more than the two reports' declared accuracy. The sensors report their nearest object, so
+ * it counts as ABSENT does (rg_forget) and becomes the track once the old one is forgotten. */
+/*@ requires near >= -1 && far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+    assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 ==> near != -1 && distance_dm * 10000 > far;
+    ensures \result == 0 && near != -1 ==> distance_dm * 10000 <= far + 2 * accuracy_dm * 10000;
+*/
+int32_t rg_seen_beyond(int32_t near, int32_t far, int32_t distance_dm, int32_t accuracy_dm)
+{
+    return near != RG_NO_TRACK && (int64_t)distance_dm * 10000 > (int64_t)far + 2 * (int64_t)accuracy_dm * 10000;
 }
 
 /* The track after a voted obstacle at `distance_dm`: a confirmed picture creates or
@@ -1156,7 +1201,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, implausible = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, sighted, strong, keep;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, sighted, strong, keep,
+            beyond;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
     int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
@@ -1268,7 +1314,11 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     for (m = 0; m < modules; m++)
         if (statuses[2 * m] == RG_PRESENT && statuses[2 * m + 1] == RG_PRESENT) sighted++;
     strong = s->track_strong;                      /* (only ever set with a track) */
-    if (present) {
+    /* a confirmed sighting farther than the remembered obstacle can be, beyond the two reports'
+     * declared accuracy: the sensors report their nearest object, so it is evidence that the
+     * remembered one is gone, confirmed as ABSENT is (rg_forget), never an instant replacement */
+    beyond = confirmed && rg_seen_beyond(trk.near, trk.far, distance, cfg->distance_accuracy_dm);
+    if (present && !beyond) {
         rg_observe(&trk, distance, toward - own_speed, age, confirmed, sighted > 0);
         strong = strong || confirmed || sighted >= 2;  /* (a sighting that creates nothing is neither) */
         if (trk.near == RG_NO_TRACK) {
@@ -1279,9 +1329,9 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
             t_state = RG_TRACK_HELD;
             t_cycles = inc(s->track_cycles);
         }
-    } else if (trk.near != RG_NO_TRACK) {
+    } else if (trk.near != RG_NO_TRACK) {   /* the track not seen: evidence, or held */
         const int64_t far = (int64_t)trk.far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
-        const int32_t evidence = sys_status == RG_ABSENT && !sys_error && !stale;
+        const int32_t evidence = (beyond || (sys_status == RG_ABSENT && !sys_error)) && !stale;
         t_absent = rg_forget(s->track_absent, evidence, far, cfg->sensor_range_dm,
                              strong ? forget_cycles : forget_single, &t_state);
         if (t_state == RG_TRACK_FORGOTTEN || t_state == RG_TRACK_PASSED) {
@@ -1290,6 +1340,11 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
             trk.far = RG_NO_TRACK;
             trk.closing_cms = 0;
             trk.age_ms = 0;
+            if (beyond) {                   /* gone: the farther sighting is the track now */
+                rg_observe(&trk, distance, toward - own_speed, age, confirmed, confirmed);
+                t_state = RG_TRACK_SEEN;
+                strong = confirmed;
+            }
         } else {
             trk.far = (int32_t)far;
             t_cycles = inc(s->track_cycles);
@@ -1310,7 +1365,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
     }
-    remembered = trk.near != RG_NO_TRACK && !confirmed;
+    remembered = trk.near != RG_NO_TRACK && !(confirmed && trk.near == (int64_t)distance * 10000);
     if (remembered) {
         rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, RG_SUPERVISED_PERIODS,
                   &tcurve);

@@ -282,6 +282,9 @@ void rg_step(const rg_config *cfg, const rg_table *table, rg_state *state,
  * the track's least position and the sensor range (Python: in_range and passed, computed
  * from them in cycle.py), returns the evidence count and writes the track state;
  * rg_track_dm is memory.distance_dm. */
+int32_t rg_seen_beyond(int32_t near, int32_t far, int32_t distance_dm, int32_t accuracy_dm);
+void rg_plaus_anchor(rg_plaus *p, int32_t distance_dm, int32_t closing_cms, int64_t tick, int32_t bad);
+int32_t rg_plaus_continues(const rg_plaus *p, int64_t tick, int32_t window_ms);
 void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t closing_cms, int64_t tick,
                      int32_t accuracy_dm, int32_t accuracy_cms, int32_t window_ms);
 int32_t rg_in_range(int32_t status, int32_t distance_dm, int32_t closing_cms, int32_t obstacle);

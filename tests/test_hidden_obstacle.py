@@ -1,0 +1,36 @@
+"""An obstacle hidden behind a farther one, as users run it (issue 38 item 2):
+`railguard run --scenario hidden-behind-3000m-40`. A at 3,000 m is seen for 0.3 s, then hidden
+from every channel until 72.5 s; every channel reports B at 5,800 m instead. The rule itself
+(a farther confirmed sighting is evidence against the track, never a replacement):
+tests/test_core_memory.py, in the mutation kill set."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+
+def _run(tmp_path, table: str, *extra: str) -> dict:
+    out = subprocess.run([sys.executable, "-m", "railguard", "run", "--scenario", "hidden-behind-3000m-40", "--table",
+                          table, "--out", str(tmp_path), "--no-plot", "--json", *extra], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_an_obstacle_hidden_behind_a_farther_one_is_remembered_and_the_train_stops(tmp_path, table):
+    """Stopped short of A, which the memory held the whole time (never forgotten: B's sightings
+    count against it only inside the declared sensor range, for forget_ms); with sensors
+    declared 6 km inaccurate (so that no farther sighting can be told from A measured again: a
+    confirmed one replaces the track at once, as before issue 38 item 2) the train hits A."""
+    s = _run(tmp_path, table)
+    assert s["outcome"] == "stopped" and 150 <= s["margin_m"] <= 250, s
+    assert s["track"]["forgotten"] == 0 and s["track"]["held_longest_s"] >= 70
+    assert 62 <= s["first_emergency_after_init_s"] <= 65             # A's curves, from memory
+    blunt = tmp_path / "blunt.toml"
+    blunt.write_text("[monitor]\ndistance_accuracy_dm = 60000\n")
+    s = _run(tmp_path, table, "--monitor-config", str(blunt))
+    assert s["outcome"] == "collision" and s["track"]["held_longest_s"] < 10
