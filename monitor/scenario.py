@@ -19,7 +19,7 @@ This module is on the ground floor: it imports nothing from can_bus, fmu or veri
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import NamedTuple, Optional
@@ -474,23 +474,9 @@ def check(scen: Scenario) -> None:
             r.number("train", f.name, value, open_low=f.name == "service_decel_mps2")
     if tr.service_decel_mps2 > min(a for _, a in tr.emergency_decel_mps2):
         r.fail("", f"train.service_decel_mps2 = {tr.service_decel_mps2:g} exceeds an emergency deceleration")
-    for i, o in enumerate(scen.obstacles):
-        r.string(f"obstacles[{i}]", "type", o.type, OBSTACLE_TYPES)
-        r.number(f"obstacles[{i}]", "position_m", o.position_m, open_low=True)
-        r.number(f"obstacles[{i}]", "appear_s", o.appear_s)
-        r.number(f"obstacles[{i}]", "leave_s", o.leave_s)
-        r.number(f"obstacles[{i}]", "speed_mps", o.speed_mps, "obstacle_speed_mps")
-        r.number(f"obstacles[{i}]", "hidden_from_s", o.hidden_from_s)
-        r.number(f"obstacles[{i}]", "hidden_until_s", o.hidden_until_s)
-        r.channels(f"obstacles[{i}]", "hidden_channels", o.hidden_channels)
-        r.leaves_after_appearing(f"obstacles[{i}]", o)
-    s = scen.sensors
-    r.number("sensors", "range_m", s.range_m, open_low=True)
-    r.number("sensors", "noise_sigma_m", s.noise_sigma_m)
-    r.number("sensors", "miss_probability", s.miss_probability)
-    if s.miss_probability >= 1.0:
-        r.fail("sensors.miss_probability", "must be below 1")
-    r.number("sensors", "seed", s.seed, integer=True)
+    for i, o in enumerate(scen.obstacles):          # (the file's own checks, on the spec's fields)
+        r.obstacle(i, asdict(o))
+    r.sensors(asdict(scen.sensors))
     for i, f in enumerate(scen.faults):
         where = f"faults[{i}]"
         r.string(where, "kind", f.kind, FAULT_KINDS)
