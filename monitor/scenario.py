@@ -46,6 +46,7 @@ COSIM_FAULT_KINDS = ("silence", "stuck", "noise_burst", "missed_detection", "deg
 FAULT_KINDS = RUN_FAULT_KINDS + tuple(k for k in COSIM_FAULT_KINDS if k not in RUN_FAULT_KINDS)
 CHANNEL_FREE_KINDS = ("blind",)      # faults of every channel at once: no channel key
 FOREVER_S = 1e9
+ALL_CHANNELS = (0, 1, 2, 3, 4, 5)
 
 # [train] keys -> the train FMU's parameter names (fmu/variables.py), which are also the
 # field names of verification/world_train.WorldTrain where it has them (its [world_train] tables
@@ -116,7 +117,7 @@ class ObstacleSpec:
     # low-reflecting object): they see past it, to the next obstacle or none; the train still hits it
     hidden_from_s: float = FOREVER_S
     hidden_until_s: float = FOREVER_S
-    hidden_channels: tuple = (0, 1, 2, 3, 4, 5)
+    hidden_channels: tuple = ALL_CHANNELS
 
     def there(self, t: float) -> bool:
         """On the track at `t` seconds after the train's entry: from appear_s until leave_s."""
@@ -296,6 +297,8 @@ class _Reader:
     def leaves_after_appearing(self, where: str, o: ObstacleSpec) -> ObstacleSpec:
         if o.leave_s <= o.appear_s:
             self.fail("", f"{where}.leave_s = {o.leave_s:g}: must be after appear_s = {o.appear_s:g}")
+        if o.hidden_from_s == FOREVER_S and (o.hidden_until_s, o.hidden_channels) != (FOREVER_S, ALL_CHANNELS):
+            self.fail(where, "hidden_until_s and hidden_channels need hidden_from_s (else nothing is hidden)")
         if o.hidden_until_s <= o.hidden_from_s and o.hidden_from_s != FOREVER_S:
             self.fail("", f"{where}.hidden_until_s = {o.hidden_until_s:g}: must be after hidden_from_s = "
                           f"{o.hidden_from_s:g}")

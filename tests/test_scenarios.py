@@ -82,6 +82,8 @@ def test_wrong_types_are_refused(tmp_path, text, match):
      r"obstacles\[1\].leave_s = 2: must be after appear_s = 5"),
     ("[[obstacles]]\nhidden_from_s = 5.0\nhidden_until_s = 5.0\n",
      r"obstacles\[0\].hidden_until_s = 5: must be after hidden_from_s = 5"),
+    ("[[obstacles]]\nhidden_until_s = 5.0\n", r"obstacles\[0\]: hidden_until_s and hidden_channels need hidden_from_s"),
+    ("[[obstacles]]\nhidden_channels = [1]\n", r"obstacles\[0\]: hidden_until_s and hidden_channels need hidden_from_s"),
     ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = [0, 6]\n", r"obstacles\[0\].hidden_channels = 6: must be in \[0, 5\]"),
     ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = []\n", r"obstacles\[0\].hidden_channels: must be a non-empty list"),
     ("[[obstacles]]\nhidden_from_s = 1.0\nhidden_channels = [2, 2]\n", r"obstacles\[0\].hidden_channels: names a channel twice"),
