@@ -7,6 +7,15 @@ byte 1. cantools packs the signals and computes the CRC; the counter check is ou
 `Receiver.accept` never raises: a frame that fails any check is counted by reason and
 dropped. The channel it came from then simply stops being refreshed, and the core's
 freshness rule ages it into DEGRADED.
+
+A second sender on an ID is a fault, never a race (issue 39 item 2): one sender never sends
+two different frames with the same alive counter within CONFLICT_WINDOW_MS, so such a pair
+means another node writes the ID (a forger in step with the genuine sender, or one replaying
+old frames). The ID is then quarantined for SECOND_SENDER_QUARANTINE_MS after the last
+conflict: its latched content is withdrawn and every frame on it refused (`second_sender`),
+so an obstacle channel reads as never heard from (DEGRADED: the voter goes to the safe side)
+and BrakeDemand as absent (the brake receiver brakes). A frame equal to the last one is a
+plain duplicate (`repeated_counter`), harmless.
 """
 from __future__ import annotations
 
@@ -34,11 +43,14 @@ FRAME_LENGTH = 8
 INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor reads (rate-checked)
 
 REJECT_REASONS = ("unknown_id", "wrong_length", "bad_crc", "repeated_counter", "counter_jump",
-                  "out_of_range", "rate_exceeded", "undecodable")
+                  "out_of_range", "rate_exceeded", "second_sender", "undecodable")
 # refused before the codec sees the frame (can_bus/frames.py, runner.MonitorCore)
 SHELL_REJECT_REASONS = ("fd_frame", "remote_frame", "error_frame", "foreign_output", "receive_error")
 BABBLE_QUARANTINE_MS = 500   # a babbling sender is ignored this long after its last excess frame
 MAX_FRAMES_PER_WINDOW = 3    # more frames than this from one sender within one period: babbling
+CONFLICT_WINDOW_MS = 500     # the same counter with other content this soon: a second sender (a 4-bit
+                             # counter at the DBC's 100 ms wraps in 1.6 s, so it is not the sender's wrap)
+SECOND_SENDER_QUARANTINE_MS = 1000   # an ID with a second sender is refused this long after the last conflict
 
 
 @lru_cache(maxsize=1)
@@ -81,6 +93,9 @@ class SenderState:
     counter: Optional[int] = None
     recent: deque = field(default_factory=lambda: deque(maxlen=MAX_FRAMES_PER_WINDOW + 1))  # its newest ticks
     quarantine_until: Optional[int] = None   # babbling: its frames are refused until this tick
+    last: Optional[tuple] = None             # (tick, bytes) of the newest frame that passed the CRC
+    contested_until: Optional[int] = None    # a second sender: its frames are refused until this tick
+    conflicts: int = 0                       # frames that repeated a counter with other content
 
 
 @dataclass
@@ -107,6 +122,7 @@ class Receiver:
     train: Optional[Train] = None
     train_tick: Optional[int] = None
     demand: Optional[dict] = None          # newest BrakeDemand (for the player and replay)
+    demand_invalid: Optional[int] = None   # tick of the newest BrakeDemand refused for its content (a level 3)
     status: Optional[dict] = None          # newest MonitorStatus
     track: Optional[dict] = None           # newest MonitorTrack
     risk: Optional[dict] = None            # newest MonitorRisk
@@ -138,6 +154,14 @@ class Receiver:
             self._reject("undecodable")
             return None
 
+    def _withdraw(self, frame_id: int) -> None:
+        """Forget what the ID's frames latched: the channel reads as never heard from, the
+        BrakeDemand as absent."""
+        if frame_id in OBSTACLE_IDS and frame_id - OBSTACLE_IDS[0] < self.channels:
+            self.reports[frame_id - OBSTACLE_IDS[0]] = None
+        elif frame_id == BRAKE_DEMAND_ID:
+            self.demand = None
+
     def _babbling(self, frame_id: int, state: SenderState, tick: int) -> bool:
         """Count this frame against its sender; True while the sender is quarantined."""
         state.recent.append(tick)
@@ -145,10 +169,28 @@ class Receiver:
         if excess:
             state.quarantine_until = tick + BABBLE_QUARANTINE_MS
         if excess or (state.quarantine_until is not None and tick < state.quarantine_until):
-            if frame_id in OBSTACLE_IDS and frame_id - OBSTACLE_IDS[0] < self.channels:
-                self.reports[frame_id - OBSTACLE_IDS[0]] = None
+            self._withdraw(frame_id)
             return True
         return False
+
+    def _second_sender(self, frame_id: int, state: SenderState, data: bytes, tick: int) -> bool:
+        """Judge a frame that passed the CRC for a second sender on its ID; True while the ID
+        is contested (its frames are refused). Every such frame is remembered, refused or
+        not, so a forger that keeps going keeps the ID contested."""
+        last, state.last = state.last, (tick, data)
+        if (last is not None and 0 <= tick - last[0] < CONFLICT_WINDOW_MS and data[1] & 0xF == last[1][1] & 0xF
+                and data != last[1]):
+            state.conflicts += 1
+            state.contested_until = tick + SECOND_SENDER_QUARANTINE_MS
+        if state.contested_until is not None and tick < state.contested_until:
+            self._withdraw(frame_id)
+            return True
+        return False
+
+    def contested(self, frame_id: int, tick: int) -> bool:
+        """Whether `frame_id` has a second sender (its quarantine runs at `tick`)."""
+        state = self.senders.get(frame_id)
+        return state is not None and state.contested_until is not None and tick < state.contested_until
 
     def _accept(self, frame_id: int, data: bytes, tick: int) -> Optional[str]:
         db = database()
@@ -168,6 +210,9 @@ class Receiver:
         if not check_profile2_crc(data, data_id(frame_id)):
             self._reject("bad_crc")
             return None
+        if self._second_sender(frame_id, state, data, tick):
+            self._reject("second_sender")
+            return None
         counter = data[1] & 0xF
         if state.counter is not None:
             delta = (counter - state.counter) & 0xF
@@ -184,6 +229,8 @@ class Receiver:
             lo, hi = sig.minimum, sig.maximum
             value = raw[sig.name] * sig.scale + sig.offset
             if (lo is not None and value < lo - 1e-9) or (hi is not None and value > hi + 1e-9):
+                if frame_id == BRAKE_DEMAND_ID:
+                    self.demand_invalid = tick
                 self._reject("out_of_range")
                 return None
         self.accepted += 1

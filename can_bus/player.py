@@ -1,7 +1,8 @@
 """The scenario player: a simulated train and six simulated sensor channels on the bus.
 
-Every period it reads the newest valid BrakeDemand (a demand older than three periods, or
-none at all, is read as emergency: the train fails safe), moves the train (brake force
+Every period it reads BrakeDemand through the reference brake receiver (brake_receiver.py:
+no valid frame yet, none for three periods, a second sender or an unknown level is an
+emergency held to standstill: the train fails safe), moves the train (brake force
 building up over `brake_buildup_s`), and sends TrainState and one ObstacleReport per channel
 with Gaussian distance noise, missed detections and the scenario's injected faults. An
 obstacle is on the track from its `appear_s` until its `leave_s`: only then can the sensors
@@ -22,10 +23,11 @@ import can
 
 from monitor.core.types import ABSENT, PRESENT, Report, Train
 
+from .brake_receiver import BrakeReceiver
 from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals, train_signals
+from .hostile import HOSTILE_KINDS, Hostile
 from .scenario import CHANNEL_FREE_KINDS, OBSTACLE_TYPES, Scenario
 
-STALE_DEMAND_PERIODS = 3
 STALE_REPORT_PERIODS = 10
 
 
@@ -64,6 +66,17 @@ class Player:
         self.stop_margin: Optional[float] = None
         self.history: deque = deque(maxlen=STALE_REPORT_PERIODS + 1)
         self.frozen: dict = {}
+        self.brakes = BrakeReceiver(self.period_ms)
+        self.hostile: Optional[Hostile] = None     # join_hostile: a second node for the forge_* faults
+
+    @property
+    def wants_hostile(self) -> bool:
+        """The scenario has faults a hostile node injects (forge_*): give it a bus connection."""
+        return any(f.kind in HOSTILE_KINDS for f in self.scenario.faults)
+
+    def join_hostile(self, bus: can.BusABC) -> None:
+        """Play the scenario's forge_* faults as a second node on its own connection `bus`."""
+        self.hostile = Hostile(bus)
 
     # ------------------------------------------------------------------ world
     def obstacle_distance(self, ch: Optional[int] = None) -> Optional[tuple[float, object]]:
@@ -80,10 +93,7 @@ class Player:
         return best
 
     def demand(self, tick: int) -> int:
-        d = self.receiver.demand
-        if d is None or tick - d["tick"] > STALE_DEMAND_PERIODS * self.period_ms:
-            return 2
-        return int(d["Level"])
+        return self.brakes.level(self.receiver, tick, self.speed if self.started else 0.0)
 
     def move(self, level: int) -> None:
         tr = self.scenario.train
@@ -161,6 +171,8 @@ class Player:
             if self.active("silence", ch):
                 continue
             fid = OBSTACLE_IDS[ch]
+            if self.hostile is not None and self.active("forge_absent", ch):
+                self.hostile.forge_absent(ch, self.sender.counters.get(fid, -1) + 1)
             for _ in range(self.fault_rate(ch)):
                 if self.active("counter_freeze", ch) and fid in self.sender.counters:
                     self.sender.counters[fid] = (self.sender.counters[fid] - 1) & 0xF
@@ -181,19 +193,21 @@ class Player:
                 return
             if not (msg.is_error_frame or msg.is_remote_frame):
                 self.receiver.accept(msg.arbitration_id, msg.data, tick)
+                if self.hostile is not None:
+                    self.hostile.sniff(msg)
 
     def step(self, tick: int, send: bool = True) -> None:
         """One period of the world. `send=False` moves the train without sending frames: a
         player that woke up late (its host stalled) does not send a backlog of old reports in a
         burst, which no real sensor does and which the monitor rightly refuses as babbling."""
         self.drain(tick)
+        if self.hostile is not None and self.active("forge_brake_none", 0):
+            self.hostile.forge_brake_none()
         status = self.receiver.status
         mode = None if status is None else int(status["Mode"])
-        if not self.started:
-            ready = mode == 1 and self.receiver.demand is not None and self.receiver.demand["Level"] == 0
-            if ready:
-                self.started = True
-        level = self.demand(tick)
+        level = self.demand(tick)                  # the brake receiver's verdict (standing, if not started)
+        if not self.started and mode == 1 and level == 0:
+            self.started = True                    # the protection system is up and releases the brakes
         if self.started:
             self.move(level)
         speed = self.speed if self.started else 0.0
@@ -229,6 +243,9 @@ class Player:
             "margin_m": None if self.stop_margin is None else round(self.stop_margin, 2),
             "scenario_s": round(self.t, 1),
             "final_speed_mps": round(self.speed if self.started else 0.0, 3),
+            "brake_receiver": self.brakes.summary(),
+            "brake_timeout_after_ms": self.brakes.silent_ms,   # silence before the receiver braked, if it did
+            "hostile_frames": {} if self.hostile is None else dict(sorted(self.hostile.sent.items())),
         }
 
 

@@ -310,6 +310,9 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, du
     recorder = Recorder(rec_bus, log_path, clock)
     try:
         player = make_player(player_bus, scenario, period)
+        if player.wants_hostile:
+            buses.append(can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False))
+            player.join_hostile(buses[-1])
         runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player, period_ms=period))
         limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
         if duration_s is not None:
@@ -357,6 +360,9 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
             player_bus = open_bus(bus_kwargs)
             opened.append(player_bus)
             player = Player(player_bus, scenario, period)
+            if player.wants_hostile:
+                opened.append(open_bus(bus_kwargs))
+                player.join_hostile(opened[-1])
             player_thread = threading.Thread(target=play_loop, args=(player, clock, stop), daemon=True)
             player_thread.start()
 

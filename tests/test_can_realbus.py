@@ -13,6 +13,7 @@ be set up is a failure, not a skip.
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -95,6 +96,23 @@ def test_player_and_monitor_on_vcan0_with_status_line(sandbox):
     summary = human_summary(stdout)
     assert summary["outcome"] != "monitor_only"          # the player ran and reported its outcome
     assert int(summary["cycles"]) == 30                    # 3 s of 100 ms cycles
+
+
+def test_kill_9_of_the_monitor_brakes_the_train_within_the_receivers_timeout(sandbox):
+    """Issue 39: the monitor killed (SIGKILL) under way on vcan0; `railguard play`'s brake
+    receiver sees no BrakeDemand for its timeout, brakes, and holds it to standstill."""
+    folder = sandbox / "kill"
+    stdout, stderr, rc = read(folder)
+    assert rc == 0 and "Traceback" not in stdout + stderr, (rc, stderr[-1500:])
+    s = json.loads(stdout)
+    assert s["final_speed_mps"] == 0.0, s                  # stands: at 10 m/s it would have run on
+    held = s["brake_receiver"]
+    assert set(held) <= {"power_up", "timeout"} and held.get("timeout", 0) > 0, held
+    # it braked once the newest valid BrakeDemand was older than the timeout (3 periods),
+    # measured on the player's clock: at most one period of the player's own cycle later
+    assert 300 < s["brake_timeout_after_ms"] <= 400 + 50, s
+    # and held the brakes from then to the end (15 s of world, the kill about 3 s after the entry)
+    assert held["timeout"] >= 100, held
 
 
 def test_virtual_interface_in_real_time_with_the_player(tmp_path):

@@ -87,7 +87,8 @@ def ref_in_range(frame_id: int, data: bytes) -> bool:
 
 
 class RefReceiver:
-    """Independent model of the receive rules: id, length, CRC, counter (with resync), range."""
+    """Independent model of the receive rules: id, length, CRC, a second sender, counter (with
+    resync), range."""
 
     def __init__(self) -> None:
         self.counters: dict[int, int] = {}
@@ -95,6 +96,8 @@ class RefReceiver:
         self.train = None
         self.accepted = 0
         self.rejected: dict[str, int] = {}
+        self.previous: dict[int, tuple] = {}     # ID -> (tick, bytes) of its last CRC-valid frame
+        self.refused_until: dict[int, int] = {}  # a second sender: the ID refused until then
 
     def expect(self, frame_id: int, data: bytes, tick: int):
         """(message name or None, reject reason or None)"""
@@ -104,6 +107,15 @@ class RefReceiver:
             return None, "wrong_length"
         if data[0] != ref_crc(data, frame_id):
             return None, "bad_crc"
+        # issue 39: the counter of the previous CRC-valid frame again, within 0.5 s, other bytes:
+        # two senders on the ID; refused (what it latched withdrawn) for 1 s after the last one
+        before, self.previous[frame_id] = self.previous.get(frame_id), (tick, data)
+        if before is not None and tick - before[0] < 500 and before[1][1] & 0xF == data[1] & 0xF and before[1] != data:
+            self.refused_until[frame_id] = tick + 1000
+        if tick < self.refused_until.get(frame_id, tick):
+            if frame_id in OBSTACLE_IDS:
+                self.reports[frame_id - 0x20] = None
+            return None, "second_sender"
         c = data[1] & 0xF
         last = self.counters.get(frame_id)
         if last is not None:

@@ -118,6 +118,9 @@ EXPECT = {
     "extreme_values.log": Expect(rejected={"out_of_range": 50}, kinds={"classical": 420}),
     "spoofed_brake_demand.log": Expect(rejected={"foreign_output": 25}, kinds={"classical": 475}, recorded_demands=50),
     "babbling_channel.log": Expect(rejected={"rate_exceeded": 27}, kinds={"classical": 370}),
+    # issue 39: per forged ID the genuine frame of period 10, both frames of 11..19, the genuine
+    # ones of 20..28 (refused until 1 s after the last conflict), then one jump to resynchronise
+    "forged_absent_in_step.log": Expect(rejected={"second_sender": 56, "counter_jump": 2}, kinds={"classical": 370}),
     "garbage_line.log": Expect(rc=2, error="not a candump line", line=151),
     "empty.log": Expect(rc=2, error="no CAN frames in the file"),
     "binary.log": Expect(rc=2, error="binary data", line=1),
@@ -425,6 +428,7 @@ FAULTS = {
     "counter_jump.log": (1002, 1902),
     "wrong_dlc.log": (1005, 1905),
     "babbling_channel.log": (1063, 1903),      # first excess frame .. last frame refused in quarantine
+    "forged_absent_in_step.log": (1002, 2804),  # first forged frame .. last genuine frame refused
     "extreme_values.log": (2000, 2905),
     "error_frames.log": (1500, 2510),          # no frame received from 1.5 s until the restart
 }

@@ -26,12 +26,16 @@ def play(args: argparse.Namespace) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    bus = open_bus(bus_cfg)
+    opened = [open_bus(bus_cfg)]
     try:
-        player = Player(bus, scen, args.period, wait_for_monitor=not args.no_wait)
+        player = Player(opened[0], scen, args.period, wait_for_monitor=not args.no_wait)
+        if player.wants_hostile:                 # the forge_* faults: a second node, its own connection
+            opened.append(open_bus(bus_cfg))
+            player.join_hostile(opened[-1])
         play_loop(player, WallClock(), stop, None if args.no_wait else round(args.wait_limit * 1000))
     finally:
-        bus.shutdown()
+        for bus in opened:
+            bus.shutdown()
     summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent, late_periods=player.late_periods,
                    faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
     output.summary(summary, args.json)

@@ -450,6 +450,30 @@ def obstacle_approach() -> str:
     return log.text()
 
 
+FORGED_FROM_DM = 20000             # forged_absent_in_step: the obstacle every channel reports, 2,000 m ahead
+FORGED_CHANNELS = (2, 3)           # module 1's two channels
+FORGED = range(10, 20)             # periods 10..19
+
+
+def forged_absent_in_step() -> str:
+    """Every channel reports a static obstacle from 2,000 m on (2 m closer per period at
+    20 m/s, far beyond any curve). A second node forges module 1's channels (0x022, 0x023) in
+    periods 10..19: ABSENT with a correct CRC and the counter the genuine frame is about to
+    carry, 0.5 ms before it (issue 39)."""
+    def report(k, ch):
+        return Report(PRESENT, FORGED_FROM_DM - 20 * k, SPEED_CMS, STATIC, 0)
+
+    def hook(log, k, fid, t, sig):
+        ch = fid - OBSTACLE_IDS[0]
+        if k in FORGED and ch in FORGED_CHANNELS:
+            forged = encode(fid, report_signals(CLEAR, ch), log.next_counter(fid))
+            log.raw(line(t - MS // 2, std(fid), forged.hex().upper()))
+        return False
+    log = Log()
+    traffic(log, range(PERIODS), hook=hook, report=report)
+    return log.text()
+
+
 def garbage_line() -> str:
     """A text line in the middle of a good log (line 151)."""
     log = Log()
@@ -487,6 +511,7 @@ CORPUS: dict[str, Callable[[], object]] = {
     "extreme_values.log": extreme_values,
     "spoofed_brake_demand.log": spoofed_brake_demand,
     "babbling_channel.log": babbling_channel,
+    "forged_absent_in_step.log": forged_absent_in_step,
     "garbage_line.log": garbage_line,
     "empty.log": empty,
     "binary.log": lambda: BINARY,

@@ -15,8 +15,10 @@ TABLE_KINDS = ("table_corrupted", "table_mismatch")
 KINDS = CHANNEL_KINDS + ("deadline_overrun",) + TABLE_KINDS
 PLAYER_KINDS = CHANNEL_KINDS            # what can_bus.player injects on a bus
 
-REJECT_OF = {"bad_crc": "bad_crc", "counter_freeze": "repeated_counter", "counter_jump": "counter_jump",
-             "wrong_length": "wrong_length", "babble": "rate_exceeded"}
+# the rejects that show a frame fault; a frozen counter with changing content is what a second
+# sender looks like (issue 39), with unchanged content a duplicate
+REJECT_OF = {"bad_crc": ("bad_crc",), "counter_freeze": ("repeated_counter", "second_sender"),
+             "counter_jump": ("counter_jump",), "wrong_length": ("wrong_length",), "babble": ("rate_exceeded",)}
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,8 @@ CATALOGUE = {f.name: f for f in (
     FaultKind("bad_crc", "CRC corruption", "one byte (or 2-4 bytes) of each real frame XORed after the CRC was applied",
               "codec reject `bad_crc`, then reason bit `stale`", "bad_crc reject, stale"),
     FaultKind("counter_freeze", "counter freeze", "the alive counter repeats (the player's `counter_freeze`)",
-              "codec reject `repeated_counter`, then reason bit `stale`", "repeated_counter reject, stale"),
+              "codec reject `repeated_counter` (the same frame again) or `second_sender` (the same counter, other "
+              "content: the channel refused for 1 s), then reason bit `stale`", "repeated_counter/second_sender reject, stale"),
     FaultKind("counter_jump", "counter jump", "the alive counter skips 1..14 values on every frame",
               "codec reject `counter_jump`, then reason bit `stale`", "counter_jump reject, stale"),
     FaultKind("wrong_length", "wrong frame length", "frames cut to 0..7 bytes",

@@ -61,7 +61,7 @@ def first_diagnostic(f: Fault, first: int, reasons_l, flags_l, modes_l, receiver
         perceptor = next((i for i in range(persisted, n) if reasons_l[i] & R_PERCEPTOR), None)
         return None if perceptor is None else max(flag, perceptor)
     if f.kind in FRAME_KINDS:
-        if receiver.rejected.get(REJECT_OF[f.kind], 0) == 0:
+        if not any(receiver.rejected.get(r, 0) for r in REJECT_OF[f.kind]):
             return None
         return next((i for i in range(first, n) if reasons_l[i] & R_STALE), None)
     if f.kind == "deadline_overrun":
@@ -130,7 +130,7 @@ def bus_detection(faults, records, rejected) -> dict:
         elif k == "contradiction":            # the player's windows outlast persistence_cycles
             ok = bool(flags & (1 << (f.channel // 2))) and bool(seen & R_PERCEPTOR)
         elif k in FRAME_KINDS:
-            ok = rejected.get(REJECT_OF[k], 0) > 0 and bool(seen & R_STALE)
+            ok = any(rejected.get(r, 0) > 0 for r in REJECT_OF[k]) and bool(seen & R_STALE)
         elif k == "deadline_overrun":
             ok = bool(seen & R_DEADLINE) and SAFE_STOP in modes
         else:

@@ -71,6 +71,10 @@ FOREIGN_HOLD_CYCLES = 10
 # quarantined 0.5 s, its channel withdrawn").
 MAX_FRAMES_PER_WINDOW = 3
 BABBLE_QUARANTINE_MS = 500
+# A second sender (docs/can.md, issue 39: "the same alive counter with other content within
+# 0.5 s: the ID is refused for 1 s after the last such frame, its channel withdrawn").
+SAME_COUNTER_WINDOW_MS = 500
+SECOND_SENDER_REFUSAL_MS = 1000
 KINDS = ("classical", "extended", "fd", "remote", "error")
 SHELL_REASON = {"fd": "fd_frame", "remote": "remote_frame", "error": "error_frame"}
 # linux/can/error.h: error class in the identifier, controller status in data[1]
@@ -166,8 +170,12 @@ class ReferenceReceiver:
        BABBLE_QUARANTINE_MS after its last excess frame; while quarantined -> rate_exceeded,
        the channel's report withdrawn and the ID's alive counter forgotten (the next frame
        that passes the CRC resynchronises without a counter check); then not 8 bytes ->
-       wrong_length; CRC -> bad_crc; the alive counter is remembered from here on whatever
-       follows; equal to the last -> repeated_counter, not last + 1 -> counter_jump; a signal
+       wrong_length; CRC -> bad_crc; a frame with the alive counter of the ID's previous
+       CRC-valid frame, arrived less than SAME_COUNTER_WINDOW_MS after it and not byte for
+       byte equal to it, means a second sender: the ID is refused until
+       SECOND_SENDER_REFUSAL_MS after the newest such frame -> second_sender, the channel's
+       report withdrawn (the counter is not remembered from refused frames); the alive
+       counter is remembered from here on whatever follows; equal to the last -> repeated_counter, not last + 1 -> counter_jump; a signal
        outside its DBC range, or a report claiming another (or a missing) channel ->
        out_of_range; otherwise accepted and latched with the arrival tick.
     """
@@ -181,6 +189,8 @@ class ReferenceReceiver:
         self.counter: dict = {}
         self.times: dict = {}
         self.quarantine_until: dict = {}
+        self.previous: dict = {}          # ID -> (tick, bytes) of its newest CRC-valid frame
+        self.refused_until: dict = {}     # ID -> end of its second-sender refusal
         self.foreign_tick: Optional[int] = None
         self.bus_state = "error_active"
         self.bus_events: Counter = Counter()
@@ -224,6 +234,15 @@ class ReferenceReceiver:
             return "wrong_length"
         if e2e_crc(data, fid) != data[0]:
             return "bad_crc"
+        before = self.previous.get(fid)
+        self.previous[fid] = (now, data)
+        if before is not None and now - before[0] < SAME_COUNTER_WINDOW_MS and before[1] != data \
+                and before[1][1] & 0xF == data[1] & 0xF:
+            self.refused_until[fid] = now + SECOND_SENDER_REFUSAL_MS
+        if now < self.refused_until.get(fid, now):
+            if fid in OBSTACLES and fid - OBSTACLES[0] < self.channels:
+                self.reports[fid - OBSTACLES[0]] = None
+            return "second_sender"
         counter = data[1] & 0xF
         last = self.counter.get(fid)
         self.counter[fid] = counter
