@@ -16,6 +16,7 @@ value-reference arrays prepared once.
 from __future__ import annotations
 
 import csv
+import math
 import shutil
 import time
 from collections import deque
@@ -55,6 +56,7 @@ class CosimResult:
     monitor_params: dict = field(default_factory=dict)
     demand_delay_cycles: int = DEMAND_DELAY_CYCLES
     demand_changes: int = 0               # changes of the monitor's demand from its first brake demand on
+    receiver_brake: bool = False          # the train's brake receiver braked on the monitor's stopped alive counter
 
     @property
     def realtime_factor(self) -> float:
@@ -68,14 +70,16 @@ class CosimResult:
 
 def run(monitor_fmu, train_fmu: str | Path, train_params: dict, monitor_params: dict,
         duration_s: float, step_s: float = 0.01, record: bool = True, *,
-        demand_delay_cycles: int = DEMAND_DELAY_CYCLES, until_standstill: bool = False) -> CosimResult:
+        demand_delay_cycles: int = DEMAND_DELAY_CYCLES, until_standstill: bool = False,
+        monitor_stop_s: float = math.inf) -> CosimResult:
     """Co-simulate and return the trace; raises CosimError if an FMU refuses a call. The
     monitor may be an FMU path (FMI 2.0 or 3.0, read from its model description) or a
     ReferenceMonitor."""
     _check(step_s, demand_delay_cycles)
     with Loop(monitor_fmu, train_fmu) as loop:
         return loop.run(train_params, monitor_params, duration_s, step_s, record,
-                        demand_delay_cycles=demand_delay_cycles, until_standstill=until_standstill)
+                        demand_delay_cycles=demand_delay_cycles, until_standstill=until_standstill,
+                        monitor_stop_s=monitor_stop_s)
 
 
 def run_scenario(scen, monitor_fmu, train_fmu: str | Path, step_s: float = 0.01,
@@ -84,7 +88,7 @@ def run_scenario(scen, monitor_fmu, train_fmu: str | Path, step_s: float = 0.01,
     `demand_delay_cycles` overrides it, as the CLI's --demand-delay does)."""
     delay = scen.demand_delay_cycles if demand_delay_cycles is None else demand_delay_cycles
     return run(monitor_fmu, train_fmu, scen.train, scen.monitor, scen.duration_s, step_s, record,
-               demand_delay_cycles=delay)
+               demand_delay_cycles=delay, monitor_stop_s=scen.monitor_stop_s)
 
 
 def _check(step_s: float, delay: int) -> int:
@@ -108,6 +112,7 @@ _OUTPUT_NAMES = [v.name for v in MONITOR_OUTPUTS]
 MONITOR_TRACE = ["brake_demand", "reasons", "voted_distance_dm", "node", "mode", "module_flags", "observation", "cycle",
                  "error_cycles", "r1_ppm", "r2_ppm", "risk_score", "risk_category", "table_risk_ppm",
                  "warning"]      # the Integer outputs, then the one Boolean
+CYCLE_FIELD = MONITOR_TRACE.index("cycle")   # the monitor's alive counter, handed to the train with the demand
 
 
 class FmuMonitor:
@@ -204,11 +209,11 @@ class Loop:
         t_vr = lambda names: [vr_of(TRAIN, n) for n in names]  # noqa: E731
         self.links = [Port(slave, 2, kind, t_vr(names), "get")
                       for kind, names in (("Real", _LINK_REAL), ("Integer", _LINK_INT), ("Boolean", _LINK_BOOL))]
-        self.t_in = Port(slave, 2, "Integer", t_vr(["brake_demand"]), "set")
+        self.t_in = Port(slave, 2, "Integer", t_vr(["brake_demand", "monitor_cycle"]), "set")
         self.t_real = Port(slave, 2, "Real", t_vr(TRAIN_TRACE_REAL), "get")
         self.t_int = Port(slave, 2, "Integer", t_vr(TRAIN_TRACE_INT), "get")
         self.t_end = Port(slave, 2, "Real", t_vr(["impact_speed"]), "get")
-        self.t_collided = Port(slave, 2, "Boolean", t_vr(["collided"]), "get")
+        self.t_collided = Port(slave, 2, "Boolean", t_vr(["collided", "receiver_brake"]), "get")
         self.do_train = do_step_function(slave, 2)
         self.runs = 0
 
@@ -242,14 +247,16 @@ class Loop:
 
     def run(self, train_params: dict, monitor_params: dict, duration_s: float, step_s: float = 0.01,
             record: bool = True, *, demand_delay_cycles: int = DEMAND_DELAY_CYCLES,
-            until_standstill: bool = False) -> CosimResult:
+            until_standstill: bool = False, monitor_stop_s: float = math.inf) -> CosimResult:
         """One run from t = 0. With `until_standstill` it ends when the train first stands
-        after moving (or collides): enough to know the stop margin."""
+        after moving (or collides): enough to know the stop margin. From `monitor_stop_s` on
+        the monitor is no longer stepped (a monitor FMU that froze or crashed): its demand and
+        its alive counter stay as they were, and the train's brake receiver must notice."""
         ratio = _check(step_s, demand_delay_cycles)
         self.start(train_params, monitor_params)
         try:
             res = self._loop(duration_s, step_s, ratio, record, demand_delay_cycles, until_standstill,
-                             bool(train_params.get("obstacle.present", True)))
+                             bool(train_params.get("obstacle.present", True)), monitor_stop_s)
         except FmuCallError as exc:
             raise CosimError(str(exc)) from None
         res.train_params, res.monitor_params = dict(train_params), dict(monitor_params)
@@ -257,7 +264,7 @@ class Loop:
         return res
 
     def _loop(self, duration_s: float, step_s: float, ratio: int, record: bool, delay: int,
-              until_standstill: bool, obstacle: bool) -> CosimResult:
+              until_standstill: bool, obstacle: bool, monitor_stop_s: float = math.inf) -> CosimResult:
         links, monitor, t_in = self.links, self.monitor, self.t_in
         do_train = self.do_train
         n_steps = int(round(duration_s / step_s))
@@ -268,21 +275,24 @@ class Loop:
         real_values, int_values = self.t_real.values, self.t_int.values
         get_real, get_int = self.t_real.call, self.t_int.call
         speed_i, dist_i = TRAIN_TRACE_REAL.index("true_speed"), TRAIN_TRACE_REAL.index("true_distance")
-        moved = False
+        moved = receiver_brake = False
         k = 0
         t0 = time.perf_counter()
         for k in range(n_steps):
             t = k * step_s
             if k % ratio == 0:
-                for src in links:
-                    src.call()
-                outs = monitor.cycle(t, links)
+                if t < monitor_stop_s - 1e-9 or not monitor_rows:
+                    for src in links:
+                        src.call()
+                    outs = monitor.cycle(t, links)
+                # else: the monitor no longer runs (the scenario's monitor_stop): its outputs freeze
                 monitor_rows.append(outs)
                 demand = outs[0]
+                frame = (demand, outs[CYCLE_FIELD])        # the demand travels with the alive counter
                 if not pending:
-                    pending.extend([demand] * delay)   # before the first demand arrives: the first one
-                pending.append(demand)
-                t_in.values[0] = pending.popleft()
+                    pending.extend([frame] * delay)    # before the first demand arrives: the first one
+                pending.append(frame)
+                t_in.values[0], t_in.values[1] = pending.popleft()
                 t_in.call()
                 delivered.append(t_in.values[0])
                 if demand > max_demand:
@@ -298,6 +308,9 @@ class Loop:
             if record:
                 get_int()
                 train_rows.append(real_values[:] + int_values[:])
+            if k % ratio == 0 and not receiver_brake:
+                self.t_collided.call()
+                receiver_brake = bool(self.t_collided.values[1])
             speed = real_values[speed_i]
             if speed > 0.0:
                 moved = True
@@ -326,7 +339,8 @@ class Loop:
         rows = [(round((i + 1) * step_s, 6), *train_rows[i], delivered[i // ratio], *monitor_rows[i // ratio])
                 for i in range(len(train_rows))]
         return CosimResult(outcome, margin, steps, len(monitor_rows), steps * step_s, wall, rows, columns,
-                           first_brake, max_demand, stop_margin, impact, demand_changes=changes)
+                           first_brake, max_demand, stop_margin, impact, demand_changes=changes,
+                           receiver_brake=receiver_brake or bool(self.t_collided.values[1]))
 
 
 def write_csv(result: CosimResult, path: Path) -> Path:

@@ -11,6 +11,7 @@ appearing late, the bus's frame faults) is refused in one line naming the file a
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 from monitor import scenario as _ground
@@ -42,6 +43,7 @@ class CosimScenario:
     demand_delay_cycles: int = 1
     braking: dict | None = None      # the declaration as written (SI), if the scenario has one
     world: _ground.Scenario | None = None   # the scenario it was adapted from (its own table: world.table)
+    monitor_stop_s: float = math.inf     # the monitor FMU is no longer stepped from then on (fault monitor_stop)
 
 
 def train_parameters(scen: _ground.Scenario) -> dict:
@@ -61,7 +63,7 @@ def train_parameters(scen: _ground.Scenario) -> dict:
     p.update({"sensor.range": s.range_m, "sensor.noise_sigma": s.noise_sigma_m,
               "sensor.miss_probability": s.miss_probability, "sensor.seed": s.seed})
     p["fault.kind"] = 0
-    if scen.faults:
+    if scen.faults and scen.faults[0].kind != "monitor_stop":     # (the master's fault, not the train's)
         f = scen.faults[0]
         p.update({"fault.kind": FAULT_KINDS.index(f.kind), "fault.channel": f.channel + 1, "fault.start": f.start_s,
                   "fault.end": f.end_s})
@@ -80,9 +82,10 @@ def adapt(scen: _ground.Scenario) -> CosimScenario:
     monitor = {k: TOPOLOGY_CODES[v] if k == "topology" else v for k, v in params.items()}
     unknown = set(monitor) - set(_MONITOR_PARAMS)
     assert not unknown, f"not monitor FMU parameters: {unknown}"
+    stop = next((f.start_s for f in scen.faults if f.kind == "monitor_stop"), math.inf)
     return CosimScenario(scen.name, scen.description, scen.duration_s, scen.table or DEFAULT_TABLE, train_parameters(scen),
                          monitor, scen.demand_delay_cycles, dict(scen.braking) if scen.braking is not None else None,
-                         scen)
+                         scen, stop)
 
 
 def parse(text: str, name: str) -> CosimScenario:

@@ -23,7 +23,9 @@ LINKS = ([(f"ch{i}.{f}", f"ch{i}.{f}") for i in range(1, CHANNELS + 1)
           for f in ("status", "distance", "closing_speed", "type", "valid")]
          + [("train.speed", "train.speed"), ("train.track_condition", "train.track_condition"),
             ("train.brake_status", "train.brake_status")])
-FEEDBACK = ("brake_demand", "brake_demand")
+# (monitor output, train input): the demand back, with the monitor's alive counter for the
+# train's brake receiver (issue 39: a monitor that stops brakes the train)
+FEEDBACK = (("brake_demand", "brake_demand"), ("cycle", "monitor_cycle"))
 RECORDED = ["train.speed", "position", "true_distance", "brake_level", "collided"]
 
 
@@ -49,13 +51,14 @@ def system_structure(train_source: str, monitor_source: str, train_params: dict,
                      stop_time: float, name: str) -> str:
     train_out = {a for a, _ in LINKS} | set(RECORDED)
     tc = "".join(_connector(n, "output", _type(TRAIN, n)) for n in sorted(train_out))
-    tc += _connector(FEEDBACK[1], "input", "Integer")
+    tc += "".join(_connector(b, "input", "Integer") for _, b in FEEDBACK)
     mc = "".join(_connector(b, "input", _type(MONITOR, b)) for _, b in LINKS)
-    mc += "".join(_connector(n, "output", _type(MONITOR, n)) for n in ("brake_demand", "mode", "reasons", "voted_distance_dm"))
+    mc += "".join(_connector(n, "output", _type(MONITOR, n))
+                  for n in ("brake_demand", "cycle", "mode", "reasons", "voted_distance_dm"))
     conns = "".join(f'      <ssd:Connection startElement="train" startConnector={quoteattr(a)} endElement="monitor" '
                     f'endConnector={quoteattr(b)}/>\n' for a, b in LINKS)
-    conns += (f'      <ssd:Connection startElement="monitor" startConnector="{FEEDBACK[0]}" endElement="train" '
-              f'endConnector="{FEEDBACK[1]}"/>\n')
+    conns += "".join(f'      <ssd:Connection startElement="monitor" startConnector="{a}" endElement="train" '
+                     f'endConnector="{b}"/>\n' for a, b in FEEDBACK)
     params = "".join(_parameter(f"train.{k}", v) for k, v in train_params.items())
     params += "".join(_parameter(f"monitor.{k}", v) for k, v in monitor_params.items())
     bindings = ""

@@ -179,6 +179,9 @@ def _train() -> list[Var]:
     P = "parameter"
     v += [
         Var("brake_demand", "Integer", "input", "discrete", 0, None, "brake demand read from the monitor: 0 none, 1 service, 2 emergency"),
+        Var("monitor_cycle", "Integer", "input", "discrete", 0, None,
+            "the monitor's alive counter (connect the monitor's `cycle`): the brakes apply (emergency, held to "
+            "standstill) when it has not changed for brake_timeout after the 1 s hand-over"),
         Var("initial_speed", "Real", P, "fixed", 20.0, "m/s", "train speed at t = 0", 0.0, 120.0),
         Var("mass", "Real", P, "fixed", 400000.0, "kg", "train mass", 1.0),
         Var("davis_a", "Real", P, "fixed", 6000.0, "N", "Davis resistance, constant term", 0.0),
@@ -220,6 +223,9 @@ def _train() -> list[Var]:
         Var("fault.channel", "Integer", P, "fixed", 1, None, "channel 1..6 the fault hits"),
         Var("fault.start", "Real", P, "fixed", 0.0, "s", "fault begins"),
         Var("fault.end", "Real", P, "fixed", 1e9, "s", "fault ends"),
+        Var("brake_timeout", "Real", P, "fixed", 0.3, "s",
+            "the brake receiver's alive timeout: emergency, held to standstill, when monitor_cycle has not changed "
+            "for longer than this (3 monitor periods); 0: no alive check", 0.0, 10.0),
     ]
     for i in range(1, CHANNELS + 1):
         p = f"ch{i}."
@@ -243,6 +249,8 @@ def _train() -> list[Var]:
         Var("collided", "Boolean", "output", "discrete", None, None, "train and obstacle met (see impact_speed)"),
         Var("impact_speed", "Real", "output", "discrete", None, "m/s",
             "our speed when train and obstacle met: > 0 a collision, 0 an oncoming obstacle reached a standing train"),
+        Var("receiver_brake", "Boolean", "output", "discrete", None, None,
+            "the brake receiver holds an emergency: monitor_cycle stopped changing for brake_timeout"),
     ]
     return v
 

@@ -669,11 +669,13 @@ def test_c_sha256_equals_hashlib_around_the_block_boundaries(tmp_path):
 # ---- 8: the train FMU ----------------------------------------------------------------------------
 
 def test_train_cruises_at_its_initial_speed_without_a_demand(instance):
-    """Default parameters, brake_demand 0: speed stays 20 m/s, the train covers 20 m per
-    second, no brake level, no collision (the obstacle is 500 m ahead)."""
+    """Default parameters, brake_demand 0 with the monitor alive (its cycle counter moving):
+    speed stays 20 m/s, the train covers 20 m per second, no brake level, no collision (the
+    obstacle is 500 m ahead)."""
     fmu = instance("train")
     fmu.init({"brake_demand": 0})
     for k in range(1, 51):
+        fmu.set("monitor_cycle", k)
         fmu.step(0.1)
         assert fmu.get("train.speed") == pytest.approx(20.0, abs=1e-9)
         assert fmu.get("position") == pytest.approx(2.0 * k, rel=1e-9)

@@ -42,10 +42,12 @@ class Train:
         return {"Real": self.slave.getReal, "Integer": self.slave.getInteger, "Boolean": self.slave.getBoolean}[kind]([vr])[0]
 
     def run(self, demand: int, seconds: float, h: float = 0.01, watch: tuple = ("true_speed",)) -> list:
-        """Step with `demand` for `seconds`; the watched outputs after every step."""
-        self.slave.setInteger([vr_of(TRAIN, "brake_demand")], [demand])
+        """Step with `demand` for `seconds`; the watched outputs after every step. The harness
+        is the monitor: its alive counter (`monitor_cycle`) moves every 100 ms."""
         rows = []
         for _ in range(round(seconds / h)):
+            self.slave.setInteger([vr_of(TRAIN, "brake_demand"), vr_of(TRAIN, "monitor_cycle")],
+                                  [demand, int(self.t * 10 + 1e-9) + 1])
             self.slave.doStep(self.t, h)
             self.t = round(self.t + h, 9)
             rows.append(tuple(self.get(n) for n in watch))

@@ -24,6 +24,7 @@ def _summary(scen, result, args: argparse.Namespace, csv_path, plot_path) -> dic
         "demand_delay_cycles": result.demand_delay_cycles,
         "stop_margin_m": None if result.stop_margin_m is None else round(result.stop_margin_m, 3),
         "impact_speed": round(result.impact_speed, 3),
+        "receiver_brake": result.receiver_brake,   # the train's brake receiver braked: the monitor's cycle stopped
         "risk": risk_summary(result),
         "csv": str(csv_path), "plot": None if plot_path is None else str(plot_path),
         "files": output.files_of(csv_path, plot_path),

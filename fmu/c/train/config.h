@@ -81,9 +81,11 @@ typedef struct {
     int32_t fault_channel;
     double fault_start; /* s */
     double fault_end;   /* s */
+    double brake_timeout; /* s: the brake receiver's alive timeout on monitor_cycle; 0: no alive check */
 
-    /* ---- input ---- */
+    /* ---- inputs ---- */
     int32_t brake_demand;
+    int32_t monitor_cycle; /* the monitor's alive counter (its cycle output), delivered with the demand */
 
     /* ---- outputs ---- */
     TrainChannel ch[TRAIN_CHANNELS];
@@ -96,12 +98,16 @@ typedef struct {
     int32_t brake_level; /* level in effect after the dead time */
     int collided;
     double impact_speed; /* m/s: our speed when the obstacle was reached (0: we stood) */
+    int receiver_brake;  /* the brake receiver holds an emergency: monitor_cycle stopped (held to standstill) */
 
     /* ---- what the getters show: the continuous outputs at the FMU time ---- */
     TrainView view;
 
     /* ---- internal state ---- */
     int32_t cell_demand;  /* brake_demand as it was at the start of the current internal step */
+    int32_t cell_cycle;   /* monitor_cycle, sampled with it */
+    int32_t alive_cycle;  /* the newest monitor_cycle value seen ... */
+    double alive_since;   /* s: ... and when it was first seen */
     double time;          /* s, = steps * FIXED_STEP */
     int64_t steps;        /* internal steps since t = 0 */
     int phase;            /* TRAIN_WAITING, TRAIN_RUNNING, TRAIN_STOPPED (model.c) */

@@ -297,6 +297,24 @@ static double traction_acc(const ModelData *m, int demand, int level, double t, 
     return traction;
 }
 
+/* The brake receiver's alive check (issue 39 item 3): the monitor's cycle counter comes
+ * with its demand; once it has not changed for longer than brake_timeout after the
+ * hand-over (a monitor FMU that froze, crashed or is no longer stepped), the receiver
+ * demands emergency and holds it until the train stands. Off with brake_timeout = 0. */
+static int alive_lost(ModelData *m, double t, double v)
+{
+    if (m->cell_cycle != m->alive_cycle) {
+        m->alive_cycle = m->cell_cycle;
+        m->alive_since = t;
+    }
+    if (m->brake_timeout > 0.0 && t >= HANDOVER_TIME - SAMPLE_EPS &&
+        t - m->alive_since > m->brake_timeout + SAMPLE_EPS)
+        m->receiver_brake = 1;
+    else if (m->receiver_brake && v <= 0.0)
+        m->receiver_brake = 0; /* held to standstill, and the counter moves again */
+    return m->receiver_brake;
+}
+
 /* One internal step of `dt` seconds from m->time, ending at `t_end`: a whole step of the
  * grid (dt = FIXED_STEP), or the first part of one (model_do_step's preview). The demand is
  * the one sampled at the start of the step (cell_demand). */
@@ -313,6 +331,7 @@ static void internal_step(ModelData *m, double dt, double t_end)
     if (raw == 0) m->seen_release = 1;
     if (m->phase == TRAIN_WAITING && raw == 0) m->phase = TRAIN_RUNNING;
     demand = (m->seen_release || t >= HANDOVER_TIME - SAMPLE_EPS) ? raw : 0;
+    if (alive_lost(m, t, v)) demand = 2;
     if (demand > 0 && m->last_demand == 0) m->demand_start = t;
     m->last_demand = demand;
 
@@ -424,8 +443,10 @@ void model_set_start_values(ModelData *m)
     m->fault_channel = 1;
     m->fault_start = 0.0;
     m->fault_end = 1e9;
+    m->brake_timeout = 0.3;
 
     m->brake_demand = 0;
+    m->monitor_cycle = 0;
 
     /* outputs before initialisation: the state at t = 0 without a sensor sample */
     m->speed = m->initial_speed;
@@ -526,11 +547,17 @@ int model_initialize(ModelData *m, char *msg, size_t len)
     if (isnan(m->fault_end)) FAIL("fault.end is NaN");
     if (m->fault_end < m->fault_start)
         FAIL("fault.end = %g: must be >= fault.start = %g", m->fault_end, m->fault_start);
+    if (!isfinite(m->brake_timeout) || m->brake_timeout < 0.0 || m->brake_timeout > 10.0)
+        FAIL("brake_timeout = %g: must be 0..10 s", m->brake_timeout);
 
     /* internal state at t = 0 */
     m->time = 0.0;
     m->steps = 0;
     m->cell_demand = 0;
+    m->cell_cycle = 0;
+    m->alive_cycle = 0;
+    m->alive_since = 0.0;
+    m->receiver_brake = 0;
     m->cruise_speed = (m->cruise_setting >= 0.0) ? m->cruise_setting : m->initial_speed;
     m->phase = (m->initial_speed > 0.0) ? TRAIN_RUNNING : TRAIN_WAITING;
     m->seen_release = 0;
@@ -592,7 +619,10 @@ int model_do_step(ModelData *m, int64_t from_ns, int64_t to_ns, char *msg, size_
     }
     for (;;) {
         const int64_t start = m->steps * TRAIN_STEP_NS;
-        if (start >= from_ns && start < to_ns) m->cell_demand = m->brake_demand; /* sample at the grid instant */
+        if (start >= from_ns && start < to_ns) { /* sample at the grid instant */
+            m->cell_demand = m->brake_demand;
+            m->cell_cycle = m->monitor_cycle;
+        }
         if (start + TRAIN_STEP_NS > to_ns) break;
         internal_step(m, FIXED_STEP, (double)(m->steps + 1) * FIXED_STEP);
         m->steps++;
@@ -696,6 +726,7 @@ int32_t model_get_integer(const ModelData *m, uint32_t vr)
     }
     switch (vr) {
     case vr_brake_demand: return m->brake_demand;
+    case vr_monitor_cycle: return m->monitor_cycle;
     case vr_track_condition: return m->track_condition;
     case vr_brake_status: return m->brake_status;
     case vr_obstacle_type: return m->obstacle_type;
@@ -719,6 +750,7 @@ int model_get_boolean(const ModelData *m, uint32_t vr)
     switch (vr) {
     case vr_obstacle_present: return m->obstacle_present;
     case vr_collided: return m->view.collided;
+    case vr_receiver_brake: return m->receiver_brake;
     default: return 0;
     }
 }
@@ -762,6 +794,7 @@ void model_set_real(ModelData *m, uint32_t vr, double v)
     case vr_sensor_period: m->sensor_period = v; break;
     case vr_fault_start: m->fault_start = v; break;
     case vr_fault_end: m->fault_end = v; break;
+    case vr_brake_timeout: m->brake_timeout = v; break;
     default: break;
     }
 }
@@ -770,6 +803,7 @@ void model_set_integer(ModelData *m, uint32_t vr, int32_t v)
 {
     switch (vr) {
     case vr_brake_demand: m->brake_demand = v; break;
+    case vr_monitor_cycle: m->monitor_cycle = v; break;
     case vr_track_condition: m->track_condition = v; break;
     case vr_brake_status: m->brake_status = v; break;
     case vr_obstacle_type: m->obstacle_type = v; break;
