@@ -12,9 +12,12 @@ its level. Emergency, whatever the last valid frame said:
 - `invalid_level`: the newest BrakeDemand with a correct CRC carried a level the DBC does
   not know (3).
 
-An emergency the receiver raised is held until the train stands (speed 0) and a valid,
-uncontested frame has come since: the brakes are never released under way on the word of a
-bus that just failed. `causes` counts the periods each cause held the brakes.
+An emergency the receiver raised for a failure (all but `power_up`) is held until the train
+stands (speed 0) and a valid, uncontested frame has come since: the brakes are never
+released under way on the word of a bus that just failed. `power_up` ends with the first
+valid frame (a brake controller powers up with the train standing; a log or a
+co-simulation that starts under way finds it already running: the train FMU's hand-over).
+`causes` counts the periods each cause held the brakes.
 """
 from __future__ import annotations
 
@@ -35,7 +38,7 @@ class BrakeReceiver:
     """Reads the level the brakes apply from a codec `Receiver` that drains the bus."""
 
     period_ms: int = 100
-    latched: Optional[str] = "power_up"   # the cause of an emergency held to standstill, None if none
+    latched: Optional[str] = None         # the cause of an emergency held to standstill, None if none
     causes: Counter = field(default_factory=Counter)
     heard: bool = False                   # a valid BrakeDemand has come since power-up
     silent_ms: Optional[int] = None       # at the first timeout: time since the last valid frame
@@ -59,6 +62,9 @@ class BrakeReceiver:
     def level(self, rx: Receiver, tick: int, speed_mps: float) -> int:
         """The level the brakes apply now (0 none, 1 service, 2 emergency)."""
         cause = self.fault(rx, tick)
+        if cause == "power_up":                  # not held: the first valid frame ends it
+            self.causes[cause] += 1
+            return EMERGENCY
         if cause is not None:
             self.latched = cause
         elif self.latched is not None and speed_mps == 0.0:

@@ -19,7 +19,10 @@ log's length, never by the size of the jump.
 
 Where the log holds the monitor's own BrakeDemand frames, the replayed demands are
 compared with the recorded ones; frames on the monitor's output IDs that are not the
-recorded monitor's count as `foreign_output` (see `MonitorCore`).
+recorded monitor's count as `foreign_output` (see `MonitorCore`). Every frame also goes to
+the reference brake receiver (brake_receiver.py), as the brake controller on that bus would
+have read it: where the log has BrakeDemand frames, `brake_receiver` gives the cycles it
+would have held the brakes, by cause (a second sender on BrakeDemand, silence, ...).
 """
 from __future__ import annotations
 
@@ -30,6 +33,8 @@ from typing import Iterable, Iterator, Optional
 
 from monitor.core import cycle as core
 
+from .brake_receiver import BrakeReceiver
+from .codec import BRAKE_DEMAND_ID, Receiver
 from .logfile import LogError, LogFrame, read
 from monitor.risk_summary import RiskTally
 
@@ -67,6 +72,8 @@ class ReplayStats:
     anomaly_counts: Counter = field(default_factory=Counter)
     recorded_demands: int = 0
     agreeing: int = 0
+    brake_side: Counter = field(default_factory=Counter)   # cycles the brake receiver braked, by cause
+    brake_frames: int = 0                                  # BrakeDemand frames in the log
     track: TrackTally = field(init=False)      # the remembered obstacle, cycle by cycle
     risk: RiskTally = field(init=False)        # the papers' risk and the table's, cycle by cycle
 
@@ -74,8 +81,9 @@ class ReplayStats:
         self.track = TrackTally(self.period_ms)
         self.risk = RiskTally(self.period_ms)
 
-    def absorb(self, mon: MonitorCore) -> None:
-        """Add a finished segment's counters."""
+    def absorb(self, mon: MonitorCore, brakes: BrakeReceiver) -> None:
+        """Add a finished segment's counters (and its brake receiver's)."""
+        self.brake_side.update(brakes.causes)
         self.accepted += mon.receiver.accepted
         self.rejected.update(mon.receiver.rejected)
         self.filtered += mon.tally.filtered
@@ -102,6 +110,8 @@ class ReplayStats:
         }
         if self.recorded_demands:
             out["agreement_with_recorded"] = self.agreeing / self.recorded_demands
+        if self.brake_frames:
+            out["brake_receiver"] = dict(sorted(self.brake_side.items()))
         return out
 
 
@@ -121,6 +131,7 @@ class Replay:
         self.source = source
         self.stats = ReplayStats(self.period)
         self._recent: dict = {}      # tick -> demand of the last two cycles (agreement)
+        self._brakes: tuple = (Receiver(), BrakeReceiver(self.period))   # the brake side, per segment
         self._pending: dict = {}     # tick -> recorded levels waiting for that cycle
 
     # ------------------------------------------------------------------ stream
@@ -152,8 +163,9 @@ class Replay:
                 if mon is not None:
                     yield from self._cycles(mon, tick, last_ftick + self.period)
                     tick = (last_ftick + self.period) // self.period * self.period + self.period
-                    st.absorb(mon)
+                    st.absorb(mon, self._brakes[1])
                 mon = MonitorCore(self.setup, recorded_outputs=True)
+                self._brakes = (Receiver(channels=self.setup.config.channels), BrakeReceiver(self.period))
                 seg_t0, seg_tick0 = ts, tick
                 st.segment_count += 1
                 if len(st.segments) < LISTED:
@@ -163,6 +175,7 @@ class Replay:
             if ftick > tick:
                 tick = ftick + (-ftick) % self.period
             mon.ingest(f.msg, ftick)
+            self._brake_side(f.msg, ftick)
             if mon.recorded_demands:
                 for rec_tick, level in mon.recorded_demands:
                     self._recorded(rec_tick, level)
@@ -171,11 +184,20 @@ class Replay:
         if mon is None:
             raise LogError(f"{self.source}: no CAN frames in the file")
         yield from self._cycles(mon, tick, last_ftick + self.period)
-        st.absorb(mon)
+        st.absorb(mon, self._brakes[1])
+
+    def _brake_side(self, msg, tick: int) -> None:
+        """The frame as the brake controller's receiver reads it (every frame on the bus)."""
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            return
+        self._brakes[0].accept(msg.arbitration_id, msg.data, tick)
+        self.stats.brake_frames += msg.arbitration_id == BRAKE_DEMAND_ID
 
     def _cycles(self, mon: MonitorCore, first: int, last: int) -> Iterator[CycleRecord]:
         """Cycles at first, first + period, ... up to `last` included."""
+        rx, brakes = self._brakes
         for tick in range(first, last + 1, self.period):
+            brakes.level(rx, tick, 1.0 if rx.train is None else rx.train.speed_cms / 100)   # counts its causes
             _, rec = mon.decide(tick)
             self.stats.cycles += 1
             self.stats.track.add(rec)

@@ -683,6 +683,25 @@ def test_train_cruises_at_its_initial_speed_without_a_demand(instance):
     assert fmu.get("true_distance") == pytest.approx(400.0, rel=1e-9)
 
 
+def test_train_brake_receiver_holds_an_unknown_level_or_a_stopped_counter_to_standstill(instance):
+    """Issue 39 item 3: a demand no monitor sends (7), for one monitor period, raises the
+    receiver's emergency and it is held to standstill though "none" follows with the counter
+    moving; a counter that stops moving (the monitor gone) does the same 0.3 s later."""
+    for fault in ("level", "counter"):
+        fmu = instance("train")
+        fmu.init({"brake_demand": 0, "obstacle.present": False})
+        speeds = []
+        for k in range(1, 401):                                   # 40 s of 0.1 s steps
+            bad = fault == "level" and k == 30
+            fmu.set("brake_demand", 7 if bad else 0)
+            fmu.set("monitor_cycle", k if fault == "level" or k < 30 else 30)
+            fmu.step(0.1)
+            speeds.append(fmu.get("true_speed"))
+        assert speeds[28] == pytest.approx(20.0)                  # cruising before
+        assert fmu.get("true_speed") == 0.0, fault               # held to standstill
+        assert all(b <= a for a, b in zip(speeds[30:], speeds[31:])), fault    # never released under way
+
+
 def test_train_stops_on_emergency_demand(instance):
     """brake_demand 2 (obeyed from t = 1 s, the hand-over) brings the train to a standstill
     well before the obstacle, slowing monotonically, and it stays there."""

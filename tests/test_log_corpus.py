@@ -509,6 +509,12 @@ def test_spoofed_brake_demands_are_foreign_and_change_nothing(replays, setup, tm
     stripped = without(CORPUS_DIR / "spoofed_brake_demand.log", tmp_path / "s.log", spoofed)
     twin, twin_st = replay.replay_file(setup, stripped)
     assert "foreign_output" not in twin_st["rejected"] and twin_st["recorded_demands"] == 50
+    # the brake side (issue 39): the spoofer repeats the monitor's counter with other content,
+    # a second sender: its reference receiver brakes from the first spoofed frame (1.05 s) and
+    # holds it, the logged train never standing (29 cycles refused, then 11 without a valid frame);
+    # without the spoofer it never brakes of its own (power-up: the cycle before the first frame)
+    assert st["brake_receiver"] == {"power_up": 1, "second_sender": 29, "timeout": 11}
+    assert twin_st["brake_receiver"] == {"power_up": 1}
     assert [key(d, foreign=False) for d in decisions] == [key(d, foreign=False) for d in twin]
     hold = FOREIGN_HOLD_CYCLES * PERIOD
     first, last = 1050, 2950                     # periods 10..29 at +50 ms

@@ -297,18 +297,20 @@ static double traction_acc(const ModelData *m, int demand, int level, double t, 
     return traction;
 }
 
-/* The brake receiver's alive check (issue 39 item 3): the monitor's cycle counter comes
- * with its demand; once it has not changed for longer than brake_timeout after the
- * hand-over (a monitor FMU that froze, crashed or is no longer stepped), the receiver
- * demands emergency and holds it until the train stands. Off with brake_timeout = 0. */
+/* The brake receiver (issue 39 item 3): the monitor's cycle counter comes with its demand;
+ * once it has not changed for longer than brake_timeout after the hand-over (a monitor FMU
+ * that froze, crashed or is no longer stepped; off with brake_timeout = 0), or the demand is
+ * a level no monitor sends (not 0..2), the receiver demands emergency and holds it until the
+ * train stands (and the counter moves again). */
 static int alive_lost(ModelData *m, double t, double v)
 {
+    const int unknown = m->cell_demand < 0 || m->cell_demand > 2;
     if (m->cell_cycle != m->alive_cycle) {
         m->alive_cycle = m->cell_cycle;
         m->alive_since = t;
     }
-    if (m->brake_timeout > 0.0 && t >= HANDOVER_TIME - SAMPLE_EPS &&
-        t - m->alive_since > m->brake_timeout + SAMPLE_EPS)
+    if ((m->brake_timeout > 0.0 && t >= HANDOVER_TIME - SAMPLE_EPS &&
+         t - m->alive_since > m->brake_timeout + SAMPLE_EPS) || (unknown && t >= HANDOVER_TIME - SAMPLE_EPS))
         m->receiver_brake = 1;
     else if (m->receiver_brake && v <= 0.0)
         m->receiver_brake = 0; /* held to standstill, and the counter moves again */
