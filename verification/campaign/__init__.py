@@ -48,7 +48,8 @@ core-level job the benchmark times), so `from verification import campaign` read
 from __future__ import annotations
 
 from .catalogue import (
-    CATALOGUE, CHANNEL_KINDS, FRAME_KINDS, KINDS, PLAYER_KINDS, REJECT_OF, TABLE_KINDS, VALUE_KINDS, FaultKind,
+    CATALOGUE, CHANNEL_KINDS, FRAME_KINDS, HOSTILE, HOSTILE_KINDS, KINDS, PLAYER_KINDS, REJECT_OF, TABLE_KINDS, VALUE_KINDS,
+    FaultKind,
 )
 from .scenarios import (
     GHOST_NAME, GHOST_SCENARIO, NOISE_SIGMA_M, PERIOD_MS, RANGE_M, SCENARIOS, SCENARIO_BY_NAME, SCENARIO_NAMES,
@@ -70,7 +71,8 @@ from .figures import heatmap
 from .part import FALSE_BRAKING_LIMIT, checks, main, section
 
 __all__ = [
-    "CATALOGUE", "CHANNEL_KINDS", "FRAME_KINDS", "KINDS", "PLAYER_KINDS", "REJECT_OF", "TABLE_KINDS", "VALUE_KINDS",
+    "CATALOGUE", "CHANNEL_KINDS", "FRAME_KINDS", "HOSTILE", "HOSTILE_KINDS", "KINDS", "PLAYER_KINDS", "REJECT_OF",
+    "TABLE_KINDS", "VALUE_KINDS",
     "FaultKind", "GHOST_NAME", "GHOST_SCENARIO", "NOISE_SIGMA_M", "PERIOD_MS", "RANGE_M", "SCENARIOS",
     "SCENARIO_BY_NAME", "SCENARIO_NAMES", "UNAVOIDABLE", "world_scenario", "SEEDS", "Fault", "RunSpec", "combos",
     "instantiate", "plan", "faulty_table", "shipped_setup", "shipped_table", "FAULT_REACTION", "bus_detection",

@@ -17,7 +17,7 @@ from monitor.core.config import Config, ConfigurationError
 
 from .. import world_train
 from ..world_train import WorldTrain
-from .catalogue import PLAYER_KINDS, TABLE_KINDS
+from .catalogue import HOSTILE_KINDS, PLAYER_KINDS, TABLE_KINDS
 from .judge import bus_detection, evaluate_bus
 from .specs import Fault
 from .scenarios import NOISE_SIGMA_M, RANGE_M, SCENARIO_BY_NAME
@@ -54,7 +54,7 @@ def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None, world: Optional[Wo
     w = SCENARIO_BY_NAME[spec.scenario]
     faults = []
     for f in spec.faults:
-        if f.kind in PLAYER_KINDS:
+        if f.kind in PLAYER_KINDS + HOSTILE_KINDS:
             rate = f.variant[0] if f.kind == "babble" and f.variant else 20
             faults.append(FaultSpec(f.kind, f.channel, float(f.start_s), float(f.end_s), rate))
     scen = Scenario(
@@ -77,6 +77,10 @@ def bus_plan(quick: bool) -> list[BusSpec]:
         variant = (20,) if kind == "babble" else ()
         specs.append(BusSpec(f"bus-{kind}-detect", "static-700m-30", (Fault(kind, i % 6, 1.0, 4.0, variant),),
                              "m1" if i % 2 == 0 else "m2", 10 + i, True, 20.0))
+    specs.append(BusSpec("bus-forge_absent-detect", "static-700m-30",
+                         tuple(Fault("forge_absent", ch, 1.0, 1e9) for ch in range(6)), "m2", 40, True, 30.0))
+    specs.append(BusSpec("bus-forge_brake_none-detect", "static-700m-30", (Fault("forge_brake_none", 0, 1.0, 1e9),),
+                         "m1", 41, True, 30.0))     # 30 s: without the defence the train reaches the obstacle
     for t in TABLE_KINDS:
         specs.append(BusSpec(f"bus-{t}", "static-300m-20", (Fault(t, -1, 0.0, 0.0, ("flip", 0.5) if t == "table_corrupted"
                                                                  else ("expect_model",)),), "m1", 1, True, 5.0))
@@ -197,7 +201,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
         out["rejects"] = dict(runner.receiver.rejected)
         out["deadline_misses"] = runner.deadline_misses
         out["faults_injected"] = sorted(f"{k}@ch{c}" for k, c in player.faults_injected)
-        out["detected"] = bus_detection(spec.faults, runner.records, runner.receiver.rejected)
+        out["detected"] = bus_detection(spec.faults, runner.records, runner.receiver.rejected, player.brakes.causes)
         problems = []
         if counter[0]:
             problems.append(f"{counter[0]} exception(s) inside the core")

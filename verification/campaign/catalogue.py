@@ -70,3 +70,17 @@ CATALOGUE = {f.name: f for f in (
               "`ConfigurationError` from `cycle.create`: the monitor refuses to start, the train is held under emergency", "ConfigurationError"),
 )}
 assert tuple(CATALOGUE) == KINDS
+
+# A hostile node on the bus (issue 39; can_bus/hostile.py): played on the virtual bus only,
+# each in a detection run of its own; not crossed with the scenarios like the faults above.
+HOSTILE_KINDS = ("forge_absent", "forge_brake_none")
+HOSTILE = {f.name: f for f in (
+    FaultKind("forge_absent", "forged absent in step",
+              "a second node sends ObstacleReport ABSENT on all six channel IDs, valid CRC, the counter each genuine "
+              "frame is about to carry, just before it",
+              "codec reject `second_sender` (the ID refused, the channel withdrawn), then reason bit `stale`",
+              "second_sender reject, stale"),
+    FaultKind("forge_brake_none", "forged brake release in step",
+              "a second node sends BrakeDemand 'none' with the monitor's next counter and cycle, just before the monitor's frame",
+              "the reference brake receiver's `second_sender` emergency, held to standstill", "brake receiver second_sender"),
+)}

@@ -109,10 +109,11 @@ def evaluate_bus(records, trace, trace_ticks, scenario: str, margin_m: float = 0
             "brake_without_obstacle": without or not entered, "false_braking": false or held}
 
 
-def bus_detection(faults, records, rejected) -> dict:
+def bus_detection(faults, records, rejected, brake_causes=None) -> dict:
     """Per fault kind of a bus run: was its diagnostic seen? (The player's `stale_timestamp`
     replays a report from 10 periods earlier with a fresh frame, so on the bus it shows as a
-    2oo2 disagreement, not as a stale channel.)"""
+    2oo2 disagreement, not as a stale channel.) `brake_causes`: the periods the player's
+    brake receiver braked, by cause (a hostile BrakeDemand is seen there)."""
     seen = 0
     flags = 0
     modes = set()
@@ -133,6 +134,10 @@ def bus_detection(faults, records, rejected) -> dict:
             ok = any(rejected.get(r, 0) > 0 for r in REJECT_OF[k]) and bool(seen & R_STALE)
         elif k == "deadline_overrun":
             ok = bool(seen & R_DEADLINE) and SAFE_STOP in modes
+        elif k == "forge_absent":
+            ok = rejected.get("second_sender", 0) > 0 and bool(seen & R_STALE)
+        elif k == "forge_brake_none":
+            ok = bool(brake_causes) and brake_causes.get("second_sender", 0) > 0
         else:
             ok = False
         out[k] = out.get(k, True) and ok

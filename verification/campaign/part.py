@@ -18,7 +18,7 @@ from monitor.core.config import Config
 from ..report import Check, Progress, Section
 from ..scale import Cluster
 from ..world_train import WorldTrain
-from .catalogue import CATALOGUE, KINDS, PLAYER_KINDS, TABLE_KINDS
+from .catalogue import CATALOGUE, HOSTILE, HOSTILE_KINDS, KINDS, PLAYER_KINDS, TABLE_KINDS
 from .figures import heatmap
 from .report import markdown, pct
 from .sandbox import vcan_guest
@@ -93,6 +93,9 @@ def checks(summary: dict) -> list[Check]:
         missing = sorted(k for k in PLAYER_KINDS + ("deadline_overrun",) + TABLE_KINDS if not b["detected"].get(k))
         out.append(Check("campaign: virtual bus: every injected fault kind detected", not missing,
                          "all detected" if not missing else f"not detected: {', '.join(missing)}", {"detected": b["detected"]}))
+        for k in HOSTILE_KINDS:                   # (their runs are safe by the sample's check above)
+            out.append(Check(f"campaign: virtual bus: a hostile node, {HOSTILE[k].label}, detected ({HOSTILE[k].short})",
+                             bool(b["detected"].get(k)), "detected" if b["detected"].get(k) else "not detected"))
     if "vcan" in summary:
         v = summary["vcan"]
         need = 1 if quick else 5

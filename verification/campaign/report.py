@@ -8,7 +8,7 @@ from typing import Optional
 
 from .. import world_train
 from ..report import md_table
-from .catalogue import CATALOGUE, KINDS, TABLE_KINDS
+from .catalogue import CATALOGUE, HOSTILE, HOSTILE_KINDS, KINDS, TABLE_KINDS
 from .specs import SEEDS, combos
 from .runs import GHOST_S
 from .scenarios import GHOST_SCENARIO, NOISE_SIGMA_M, RANGE_M, SCENARIOS, UNAVOIDABLE
@@ -181,7 +181,9 @@ def markdown(summary: dict, figure: Optional[str]) -> str:
                   "own (`can_bus.player`): its `stale_timestamp` replays the report of 10 periods earlier in a fresh "
                   "frame, so on the bus it shows as a 2oo2 disagreement (module flag) rather than as a stale channel; "
                   "runs named `-detect` place each fault while the train approaches a static obstacle in sight and must "
-                  "show its diagnostic. Frames rejected by reason: "
+                  "show its diagnostic. Two of them put a hostile node on the bus (issue 39, `can_bus/hostile.py`): "
+                  + "; ".join(f"`{k}`: {HOSTILE[k].injection}, seen as {HOSTILE[k].diagnostic}" for k in HOSTILE_KINDS)
+                  + " (without the second-sender rule both collide). Frames rejected by reason: "
                   + (", ".join(f"{k} {v:,}" for k, v in sorted(b["frames_rejected"].items())) or "none") + ".\n",
                   md_table(["run", "scenario", "table", "outcome", "unsafe", "crash", "detected"],
                            [[r["name"], r.get("scenario", ""), r.get("model", ""), r.get("outcome", ""), r.get("unsafe", 0),
