@@ -34,11 +34,12 @@ def user_errors() -> tuple[type[BaseException], ...]:
     try:
         import can
 
+        from can_bus.keys import KeyFileError
         from can_bus.replay import ReplayError
         from can_bus.scenario import ScenarioError
         from can_bus.session import BusOpenError, MonitorNotReady
 
-        errors += [ScenarioError, ReplayError, BusOpenError, MonitorNotReady, can.CanError]
+        errors += [ScenarioError, ReplayError, BusOpenError, MonitorNotReady, can.CanError, KeyFileError]
     except ImportError:  # the CAN shell is optional for the offline commands
         pass
     try:
