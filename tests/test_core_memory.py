@@ -170,7 +170,7 @@ def test_a_farther_obstacle_seen_by_every_module_is_evidence_against_the_nearer_
         assert out.distance_dm == 20000 and not out.system_error, k
         assert out.track_state == TRACK_CONFIRMING and 2990 <= out.track_dm <= 3000 and out.reasons & R_MEMORY, k
     out = d.present(20000, 0)
-    assert out.track_state == TRACK_SEEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
     # a blind or disputed cycle between B's sightings restarts the evidence, as for ABSENT
     d = normal_driver(cfg, M2)
     firm(d, 3000, 0, cycles=2)
@@ -199,7 +199,8 @@ def test_seen_beyond_is_strictly_farther_than_the_track_plus_two_accuracies():
 
 
 def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_itself():
-    """Once B replaces the forgotten A it is a track like any other: seen (no memory reason),
+    """Once B replaces the forgotten A (the state says A was forgotten, the distance is B's) it
+    is a track like any other: no memory reason,
     predicted from B's own closing speed (a static obstacle: the train's worst-case travel)."""
     cfg = Config(forget_ms=300)
     n = forget_cycles(cfg)
@@ -209,7 +210,7 @@ def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_it
     for _ in range(n - 1):
         assert d.present(20000, V).track_state == TRACK_CONFIRMING
     out = d.present(20000, V)
-    assert out.track_state == TRACK_SEEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
     step = near_travel(V, cfg.speed_error_permille, accel(cfg), 0, cfg.period_ms)   # (reported closing 0)
     out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), V)
     assert out.track_dm == (20000 * UNITS_PER_DM - step) // UNITS_PER_DM and out.track_state == TRACK_HELD

@@ -250,7 +250,10 @@ def test_an_obstacle_lost_from_sight_is_remembered_until_forgotten_or_passed(cas
     assert st[1 + forget, 4] == TRACK_FORGOTTEN and track_dm[1 + forget, 4] == NO_DISTANCE
     assert (demand[1 + forget:forget + confirm, 4] == EMERGENCY).all()       # the hold: confirm - 1 calm cycles
     assert (demand[forget + confirm, 4] == EMERGENCY) != revocable
-    assert (st[blind, 5] == TRACK_CONFIRMING).all() and st[1 + forget, 5] == TRACK_SEEN   # back before forgetting
+    # back when the count ends: farther than the track can be, it was the last evidence (the track
+    # forgotten, the sighting taken); within the reports' accuracy, the same obstacle seen again
+    assert (st[blind, 5] == TRACK_CONFIRMING).all() and st[1 + forget, 5] in (TRACK_FORGOTTEN, TRACK_SEEN)
+    assert track_dm[1 + forget, 5] == t["out_distance_dm"][1 + forget, 5] != NO_DISTANCE
     assert st[1 + forget, 6] == TRACK_FORGOTTEN and (st[blind, 6] == TRACK_CONFIRMING).all()   # on the range
     assert (st[2:, 7] == TRACK_HELD).all() and (t["out_track_cycles"][2:, 7] == np.arange(1, st.shape[0] - 1)).all()
     assert st[2, 8] == TRACK_PASSED and (st[3:, 8] == TRACK_NONE).all()     # 1 m ahead at 20 m/s: passed at once
@@ -365,7 +368,8 @@ def memory_and_hold_boundaries(cfg: Config, t: dict) -> dict:
         # it (the track kept, confirming), and the sighting becomes the track once it is forgotten
         "a farther confirmed sighting: evidence against the track": (t["out_distance_dm"] != NO_DISTANCE)
                                                                     & (st == TRACK_CONFIRMING),
-        "the farther sighting taken once the track is forgotten": (st == TRACK_SEEN)
+        "the farther sighting taken once the track is forgotten": (st == TRACK_FORGOTTEN)
+                                                                  & (t["out_track_dm"] == t["out_distance_dm"])
                                                                   & (_previous(st, TRACK_NONE) == TRACK_CONFIRMING)
                                                                   & (_previous(t["out_distance_dm"], NO_DISTANCE)
                                                                      != NO_DISTANCE)

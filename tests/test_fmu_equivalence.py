@@ -537,7 +537,8 @@ def coverage_probe(seen: Counter, setup):
         beyond = (out.distance_dm != NO_DISTANCE and before.track_near != NO_TRACK and not out.system_error
                   and out.distance_dm * UNITS_PER_DM > before.track_far + 2 * cfg.distance_accuracy_dm * UNITS_PER_DM)
         seen["a farther confirmed sighting counted against the track"] += beyond and out.track_state == TRACK_CONFIRMING
-        seen["the farther sighting taken once the track is forgotten"] += beyond and out.track_state == TRACK_SEEN
+        seen["the farther sighting taken once the track is forgotten"] += (beyond and out.track_state == TRACK_FORGOTTEN
+                                                                          and out.track_dm == out.distance_dm)
         seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
         # issue 38 item 3: plausibility
         n = cfg.channels

@@ -313,7 +313,7 @@ class VectorMonitor:
         gone = passed | forgotten
         kept = lost & ~gone
         after = beyond & gone                         # B, seen by every module, is the track now
-        t_state = np.select([takes | after, held, passed, forgotten, evidence, lost],
+        t_state = np.select([takes, held, passed, forgotten, evidence, lost],     # (after: forgotten or passed)
                             [TRACK_SEEN, TRACK_HELD, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD],
                             TRACK_NONE)
         self.track_absent = np.where(evidence & ~forgotten, count, 0)

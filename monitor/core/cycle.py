@@ -212,10 +212,10 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
                                    far < 0, setup.forget_cycles if strong else setup.forget_single)
         if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
             near, far, t_closing, strong = NO_TRACK, NO_TRACK, 0, False
-            if beyond:                              # gone: the farther sighting is the track now
+            if beyond:                              # gone: the farther sighting is the track now (the
                 near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
                                                       confirmed, confirmed)
-                t_state, strong = TRACK_SEEN, confirmed
+                strong = confirmed                  # state says what happened to the old one)
         else:
             t_cycles = _inc(state.track_cycles)
     else:

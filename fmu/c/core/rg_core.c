@@ -1340,10 +1340,9 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
             trk.far = RG_NO_TRACK;
             trk.closing_cms = 0;
             trk.age_ms = 0;
-            if (beyond) {                   /* gone: the farther sighting is the track now */
+            if (beyond) {                   /* gone: the farther sighting is the track now (the */
                 rg_observe(&trk, distance, toward - own_speed, age, confirmed, confirmed);
-                t_state = RG_TRACK_SEEN;
-                strong = confirmed;
+                strong = confirmed;         /* state says what happened to the old one) */
             }
         } else {
             trk.far = (int32_t)far;
