@@ -22,7 +22,7 @@ from monitor.core import cycle as core
 from monitor.core.config import Config
 from monitor.core.types import (
     EMERGENCY, INIT, MAX_COUNT, NO_DISTANCE, NO_TRACK, R_INIT, R_LATCH, R_MEMORY, R_SAFE_STOP, R_SYSTEM_ERROR,
-    SAFE_STOP, TRACK_CONFIRMING, TRACK_HELD, TRACK_SEEN, Inputs, Report, Train,
+    SAFE_STOP, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_PASSED, TRACK_SEEN, Inputs, Report, Train,
 )
 
 from .reference import (
@@ -379,7 +379,8 @@ class Harness:
 
     def _track_problem(self, before, s, out) -> str:
         """The obstacle memory: the track state 0..5; a distance (0..60000 dm) exactly when a
-        track is remembered (seen, held or confirming), in the outputs and the state alike; its
+        track is remembered (seen, held or confirming; or forgotten or passed while a farther
+        confirmed sighting, the last evidence, took its place), in the outputs and the state alike; its
         unvoted cycles counting up while held or confirming, 0 otherwise; the memory reason
         whenever a remembered obstacle no channel shows is supervised (held, confirming), never
         without a track, and beside a seen one only in a doubtful picture (a system error: a
@@ -389,7 +390,10 @@ class Harness:
             return f"track outputs {out.track_state!r}, {out.track_dm!r}, {out.track_cycles!r} not integers"
         if not 0 <= out.track_state <= 5:
             return f"track state {out.track_state}"
-        tracked = out.track_state in _TRACKED
+        # forgotten on a farther confirmed sighting's evidence: that sighting is the track now (issue 38)
+        taken_over = (out.track_state in (TRACK_FORGOTTEN, TRACK_PASSED) and out.distance_dm != NO_DISTANCE
+                      and not out.system_error and out.track_dm == out.distance_dm)
+        tracked = out.track_state in _TRACKED or taken_over
         if not (0 <= out.track_dm <= 60000 if tracked else out.track_dm == NO_DISTANCE):
             return f"track distance {out.track_dm} in track state {out.track_state}"
         if (s.track_near != NO_TRACK) is not tracked or s.track_near < NO_TRACK:
