@@ -4,8 +4,12 @@ E2E profile, sniffs the bus and forges frames in step with the genuine senders.
 `forge_absent`: before channel ch's genuine ObstacleReport, the same ID with "absent", a
 valid CRC and the counter the genuine frame is about to carry, so a receiver that keeps
 whichever valid frame comes first believes the forger. `forge_brake_none`: BrakeDemand
-"none" with the monitor's next counter and cycle, before the monitor's own frame. The node
-has its own bus connection (another node on the wire), so everyone else receives it.
+"none" with the monitor's next counter and cycle, before the monitor's own frame.
+`replay_absent` / `replay_brake_none`: no forging at all. The node records the frames it
+sees on the bus ("absent" reports and "none" demands, one per alive counter value), then
+sends them back byte for byte, each when its counter value is due, just before the genuine
+frame. The node has its own bus connection (another node on the wire), so everyone else
+receives it.
 """
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ from monitor.core.types import ABSENT, Report
 
 from .codec import BRAKE_DEMAND_ID, OBSTACLE_IDS, encode, report_signals
 
-HOSTILE_KINDS = ("forge_absent", "forge_brake_none")
+HOSTILE_KINDS = ("forge_absent", "forge_brake_none", "replay_absent", "replay_brake_none")
 
 
 @dataclass
@@ -26,12 +30,34 @@ class Hostile:
     sent: dict = field(default_factory=dict)      # forged frames by kind
     brake_counter: int = -1                       # the newest BrakeDemand counter seen on the bus
     brake_cycle: int = 0                          # and its Cycle signal
+    recorded: dict = field(default_factory=dict)  # (ID, counter) -> the first "absent" / "none" frame seen
+
+    def listen(self) -> None:
+        """Read what the node's own connection received (every other node's frames)."""
+        while True:
+            msg = self.bus.recv(timeout=0.0)
+            if msg is None:
+                return
+            if not (msg.is_error_frame or msg.is_remote_frame) and len(msg.data) == 8:
+                self.sniff(msg)
 
     def sniff(self, msg: can.Message) -> None:
-        """Learn the monitor's BrakeDemand counter and cycle from a frame seen on the bus."""
-        if msg.arbitration_id == BRAKE_DEMAND_ID and len(msg.data) == 8:
-            self.brake_counter = msg.data[1] & 0xF
-            self.brake_cycle = int.from_bytes(bytes(msg.data[4:8]), "little")
+        """Learn the monitor's BrakeDemand counter and cycle from a frame seen on the bus, and
+        record "absent" reports and "none" demands (status / level 0) for a replay."""
+        fid, data = msg.arbitration_id, bytes(msg.data)
+        if len(data) != 8:
+            return
+        if fid == BRAKE_DEMAND_ID:
+            self.brake_counter = data[1] & 0xF
+            self.brake_cycle = int.from_bytes(data[4:8], "little")
+        if (fid == BRAKE_DEMAND_ID or fid in OBSTACLE_IDS) and (data[1] >> 4) & 0x3 == 0:
+            self.recorded.setdefault((fid, data[1] & 0xF), data)
+
+    def replay(self, kind: str, frame_id: int, counter: int) -> None:
+        """Send the recorded frame of `frame_id` with alive counter `counter`, if there is one."""
+        data = self.recorded.get((frame_id, counter & 0xF))
+        if data is not None:
+            self._send(kind, frame_id, data)
 
     def _send(self, kind: str, frame_id: int, data: bytes) -> None:
         try:

@@ -24,7 +24,8 @@ import can
 from monitor.core.types import ABSENT, PRESENT, Report, Train
 
 from .brake_receiver import BrakeReceiver
-from .codec import MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals, train_signals
+from .codec import (BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals,
+                    train_signals)
 from .hostile import HOSTILE_KINDS, Hostile
 from .scenario import CHANNEL_FREE_KINDS, OBSTACLE_TYPES, Scenario
 
@@ -173,6 +174,8 @@ class Player:
             fid = OBSTACLE_IDS[ch]
             if self.hostile is not None and self.active("forge_absent", ch):
                 self.hostile.forge_absent(ch, self.sender.counters.get(fid, -1) + 1)
+            if self.hostile is not None and self.active("replay_absent", ch):
+                self.hostile.replay("replay_absent", fid, self.sender.counters.get(fid, -1) + 1)
             for _ in range(self.fault_rate(ch)):
                 if self.active("counter_freeze", ch) and fid in self.sender.counters:
                     self.sender.counters[fid] = (self.sender.counters[fid] - 1) & 0xF
@@ -193,16 +196,18 @@ class Player:
                 return
             if not (msg.is_error_frame or msg.is_remote_frame):
                 self.receiver.accept(msg.arbitration_id, msg.data, tick)
-                if self.hostile is not None:
-                    self.hostile.sniff(msg)
 
     def step(self, tick: int, send: bool = True) -> None:
         """One period of the world. `send=False` moves the train without sending frames: a
         player that woke up late (its host stalled) does not send a backlog of old reports in a
         burst, which no real sensor does and which the monitor rightly refuses as babbling."""
         self.drain(tick)
-        if self.hostile is not None and self.active("forge_brake_none", 0):
-            self.hostile.forge_brake_none()
+        if self.hostile is not None:
+            self.hostile.listen()                     # what the other nodes sent, from its own connection
+            if self.active("forge_brake_none", 0):
+                self.hostile.forge_brake_none()
+            if self.active("replay_brake_none", 0):
+                self.hostile.replay("replay_brake_none", BRAKE_DEMAND_ID, self.hostile.brake_counter + 1)
         status = self.receiver.status
         mode = None if status is None else int(status["Mode"])
         level = self.demand(tick)                  # the brake receiver's verdict (standing, if not started)

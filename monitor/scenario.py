@@ -41,11 +41,11 @@ BRAKES = ("normal", "degraded")
 # only in the train FMU)
 RUN_FAULT_KINDS = ("silence", "stuck", "bad_crc", "counter_freeze", "counter_jump", "wrong_length", "babble",
                    "contradiction", "noise_burst", "missed_detection", "stale_timestamp", "blind",
-                   "forge_absent", "forge_brake_none")          # the last two: a hostile node (can_bus/hostile.py)
+                   "forge_absent", "forge_brake_none", "replay_absent", "replay_brake_none")   # 4: hostile.py
 COSIM_FAULT_KINDS = ("silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance",
                      "contradiction", "blind", "monitor_stop")     # monitor_stop: the master stops stepping it
 FAULT_KINDS = RUN_FAULT_KINDS + tuple(k for k in COSIM_FAULT_KINDS if k not in RUN_FAULT_KINDS)
-CHANNEL_FREE_KINDS = ("blind", "forge_brake_none", "monitor_stop")   # faults of no single channel: no channel key
+CHANNEL_FREE_KINDS = ("blind", "forge_brake_none", "replay_brake_none", "monitor_stop")   # no channel key
 FOREVER_S = 1e9
 ALL_CHANNELS = (0, 1, 2, 3, 4, 5)
 

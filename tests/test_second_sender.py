@@ -141,7 +141,7 @@ def test_an_unknown_level_brakes_at_once():
 
 # ----------------------------------------------------------------------------- closed loop, as users run it
 
-ATTACKS = ("hostile-forged-absent", "hostile-forged-brake-none")
+ATTACKS = ("hostile-forged-absent", "hostile-forged-brake-none", "hostile-replay-absent", "hostile-replay-brake-none")
 
 
 @pytest.fixture(scope="module")
@@ -174,6 +174,19 @@ def test_forged_brake_none_stops_the_train_by_the_brake_receiver(cli_runs, table
     assert s["outcome"] == "stopped" and s["margin_m"] > 300, s
     assert s["brake_receiver"]["second_sender"] > 100
     assert s["rejects"]["foreign_output"] == s["hostile_frames"]["forge_brake_none"] > 300
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_a_replay_of_recorded_frames_in_step_stops_the_train(cli_runs, table):
+    """No forging: the node sends back the sensors' own recorded "absent" frames, and the
+    monitor's own recorded "none" demands, byte for byte when each counter value is due."""
+    s, _ = cli_runs["hostile-replay-absent", table]
+    assert s["outcome"] == "stopped" and s["margin_m"] > 300 and s["hostile_frames"]["replay_absent"] > 2000, s
+    assert s["rejects"]["second_sender"] > 1000 and s["first_emergency_after_init_s"] == pytest.approx(5.1)
+    s, _ = cli_runs["hostile-replay-brake-none", table]
+    # the recorded frames carry old Cycle values: they differ from the monitor's at once, and the
+    # brake receiver holds the train from the first conflict (2 s), before the vehicle is there
+    assert s["outcome"] == "stopped" and s["margin_m"] > 400 and s["brake_receiver"]["second_sender"] > 300, s
 
 
 @pytest.mark.parametrize("name", ATTACKS)
