@@ -95,7 +95,6 @@ class SenderState:
     quarantine_until: Optional[int] = None   # babbling: its frames are refused until this tick
     last: Optional[tuple] = None             # (tick, bytes) of the newest frame that passed the CRC
     contested_until: Optional[int] = None    # a second sender: its frames are refused until this tick
-    conflicts: int = 0                       # frames that repeated a counter with other content
 
 
 @dataclass
@@ -180,7 +179,6 @@ class Receiver:
         last, state.last = state.last, (tick, data)
         if (last is not None and 0 <= tick - last[0] < CONFLICT_WINDOW_MS and data[1] & 0xF == last[1][1] & 0xF
                 and data != last[1]):
-            state.conflicts += 1
             state.contested_until = tick + SECOND_SENDER_QUARANTINE_MS
         if state.contested_until is not None and tick < state.contested_until:
             self._withdraw(frame_id)

@@ -38,7 +38,7 @@ class Hostile:
             msg = self.bus.recv(timeout=0.0)
             if msg is None:
                 return
-            if not (msg.is_error_frame or msg.is_remote_frame) and len(msg.data) == 8:
+            if not (msg.is_error_frame or msg.is_remote_frame):
                 self.sniff(msg)
 
     def sniff(self, msg: can.Message) -> None:

@@ -49,6 +49,7 @@ class KeySet:
     folder: Path
     keys: dict               # sender -> key bytes (only the senders loaded)
     test: bool
+    manifest: dict           # keyset.toml as read (format, test, created, senders -> fingerprints)
 
     def key_for(self, frame_id: int) -> bytes:
         """The key of the ID's owner (KeyFileError if the set does not hold it)."""
@@ -73,14 +74,15 @@ def new_set(folder: str | Path, *, test: bool = False) -> KeySet:
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         with os.fdopen(fd, "w", encoding="ascii") as fh:
             fh.write(key.hex() + "\n")
-    created = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    lines = [f"format = {FORMAT}", f"test = {'true' if test else 'false'}", f'created = "{created}"',
+    info = {"format": FORMAT, "test": test, "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "senders": {s: fingerprint(k) for s, k in keys.items()}}
+    lines = [f"format = {FORMAT}", f"test = {'true' if test else 'false'}", f'created = "{info["created"]}"',
              "# fingerprint = the first 8 bytes of the key's SHA-256 (the key itself is in <sender>.key)",
-             "[senders]"] + [f'{s} = "{fingerprint(k)}"' for s, k in keys.items()]
+             "[senders]"] + [f'{s} = "{f}"' for s, f in info["senders"].items()]
     fd = os.open(folder / MANIFEST, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     with os.fdopen(fd, "w", encoding="ascii") as fh:
         fh.write("\n".join(lines) + "\n")
-    return KeySet(folder, keys, test)
+    return KeySet(folder, keys, test, info)
 
 
 def manifest(folder: str | Path) -> dict:
@@ -127,4 +129,4 @@ def load(folder: str | Path, senders: Optional[Iterable[str]] = None) -> KeySet:
         if fingerprint(key) != info["senders"][sender]:
             raise KeyFileError(f"{path}: its fingerprint is not the manifest's (a key from another set?)")
         keys[sender] = key
-    return KeySet(folder, keys, info["test"])
+    return KeySet(folder, keys, info["test"], info)

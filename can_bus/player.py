@@ -68,15 +68,15 @@ class Player:
         self.history: deque = deque(maxlen=STALE_REPORT_PERIODS + 1)
         self.frozen: dict = {}
         self.brakes = BrakeReceiver(self.period_ms)
-        self.hostile: Optional[Hostile] = None     # join_hostile: a second node for the forge_* faults
+        self.hostile: Optional[Hostile] = None     # join_hostile: a second node for the hostile faults
 
     @property
     def wants_hostile(self) -> bool:
-        """The scenario has faults a hostile node injects (forge_*): give it a bus connection."""
+        """The scenario has faults a hostile node injects (forge_*, replay_*): give it a bus connection."""
         return any(f.kind in HOSTILE_KINDS for f in self.scenario.faults)
 
     def join_hostile(self, bus: can.BusABC) -> None:
-        """Play the scenario's forge_* faults as a second node on its own connection `bus`."""
+        """Play the scenario's hostile faults as a second node on its own connection `bus`."""
         self.hostile = Hostile(bus)
 
     # ------------------------------------------------------------------ world

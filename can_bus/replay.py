@@ -131,7 +131,7 @@ class Replay:
         self.source = source
         self.stats = ReplayStats(self.period)
         self._recent: dict = {}      # tick -> demand of the last two cycles (agreement)
-        self._brakes: tuple = (Receiver(), BrakeReceiver(self.period))   # the brake side, per segment
+        self._brakes: tuple = self._brake_side_anew()   # the brake side (receiver, brake receiver), per segment
         self._pending: dict = {}     # tick -> recorded levels waiting for that cycle
 
     # ------------------------------------------------------------------ stream
@@ -165,7 +165,7 @@ class Replay:
                     tick = (last_ftick + self.period) // self.period * self.period + self.period
                     st.absorb(mon, self._brakes[1])
                 mon = MonitorCore(self.setup, recorded_outputs=True)
-                self._brakes = (Receiver(channels=self.setup.config.channels), BrakeReceiver(self.period))
+                self._brakes = self._brake_side_anew()
                 seg_t0, seg_tick0 = ts, tick
                 st.segment_count += 1
                 if len(st.segments) < LISTED:
@@ -185,6 +185,9 @@ class Replay:
             raise LogError(f"{self.source}: no CAN frames in the file")
         yield from self._cycles(mon, tick, last_ftick + self.period)
         st.absorb(mon, self._brakes[1])
+
+    def _brake_side_anew(self) -> tuple:
+        return Receiver(channels=self.setup.config.channels), BrakeReceiver(self.period)
 
     def _brake_side(self, msg, tick: int) -> None:
         """The frame as the brake controller's receiver reads it (every frame on the bus)."""

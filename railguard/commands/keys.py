@@ -17,15 +17,15 @@ def new(args: argparse.Namespace) -> int:
     from can_bus import keys
 
     ks = keys.new_set(args.folder, test=args.test)
-    output.summary(_summary(ks.folder, keys.manifest(ks.folder)), args.json)
+    output.summary(_summary(ks.folder, ks.manifest), args.json)
     return 0
 
 
 def show(args: argparse.Namespace) -> int:
     from can_bus import keys
 
-    keys.load(args.folder)                       # every key checked: permissions, length, fingerprint
-    output.summary(_summary(args.folder, keys.manifest(args.folder)), args.json)
+    ks = keys.load(args.folder)                  # every key checked: permissions, length, fingerprint
+    output.summary(_summary(ks.folder, ks.manifest), args.json)
     return 0
 
 

@@ -29,7 +29,7 @@ def play(args: argparse.Namespace) -> int:
     opened = [open_bus(bus_cfg)]
     try:
         player = Player(opened[0], scen, args.period, wait_for_monitor=not args.no_wait)
-        if player.wants_hostile:                 # the forge_* faults: a second node, its own connection
+        if player.wants_hostile:                 # the hostile faults: a second node, its own connection
             opened.append(open_bus(bus_cfg))
             player.join_hostile(opened[-1])
         play_loop(player, WallClock(), stop, None if args.no_wait else round(args.wait_limit * 1000))
