@@ -64,6 +64,7 @@ class Player:
         self.speed = s.train.speed_mps
         self.decel = 0.0
         self.collision = False
+        self.impact_mps = 0.0                           # our speed when an obstacle was reached
         self.stop_margin: Optional[float] = None
         self.history: deque = deque(maxlen=STALE_REPORT_PERIODS + 1)
         self.frozen: dict = {}
@@ -112,7 +113,7 @@ class Player:
         self.t += dt
         near = self.obstacle_distance()
         if near is not None and near[0] <= 0:
-            self.collision = True
+            self.collision, self.impact_mps = True, self.speed
             self.speed = 0.0
         elif near is not None and self.speed == 0.0 and self.stop_margin is None:
             self.stop_margin = near[0]
@@ -233,7 +234,8 @@ class Player:
     def outcome(self) -> dict:
         saw_obstacle = any(r.distance_m is not None for r in self.trace)
         if self.collision:
-            result = "collision"
+            # an oncoming obstacle that reaches a standing train: not a collision of ours (as cosim)
+            result = "collision" if self.impact_mps > 0.0 else "struck_at_standstill"
         elif not self.finished and not (self.started and self.speed == 0.0):
             # cut short (--duration, a signal) with the train still running or not yet started: no verdict
             result = "incomplete"

@@ -35,6 +35,7 @@ EXPECTED = {
     "observation.py": {"speed_class", "m1_observation", "m2_observation"},
     "risk.py": {"r2_ppm", "risk_score", "risk_category"},
     "plausibility.py": {"slack", "check"},
+    "tracks.py": {"relation", "assign", "merge"},
 }
 ARGS = ["check", "--analysis_kind=PEP316,asserts", "--per_condition_timeout=10", "--report_all"]
 RETRY_BUDGET = ["--per_condition_timeout=60", "--per_path_timeout=20"]

@@ -218,18 +218,39 @@ def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_it
 
 def test_a_disputed_sighting_the_track_took_keeps_the_track_s_own_curves():
     """A track remembers the fastest closing speed it was seen with. A disputed sighting (one
-    channel ABSENT) that the track takes moves its position but not that speed, so the
-    remembered obstacle's curves (oncoming) still supervise beside the voted one's (reported
-    static): between the two EBIs it is an emergency."""
-    cfg = Config()
+    channel ABSENT) inside the track's window (sensors declared 300 m inaccurate here) is the
+    track measured: it moves the position but not that speed, so the remembered obstacle's
+    curves (oncoming) still supervise beside the voted one's (reported static): between the
+    two EBIs it is an emergency."""
+    cfg = Config(distance_accuracy_dm=3000)
     oncoming = V + 2000                                   # the obstacle closes at 20 m/s of its own
     static, fast = curves(cfg, V, 0, 0, V, 0).ebi_dm, curves(cfg, V, 0, 0, oncoming, 0).ebi_dm
-    assert static + 1 < fast
+    assert static + 1 < fast and fast + 2000 - static < 2 * cfg.distance_accuracy_dm
     d = normal_driver(cfg, M1)
     firm(d, fast + 2000, V, closing=oncoming, cycles=1)
     out = d.cycle(with_channel(present(d.tick, static + 1, closing=V), 0, Report(ABSENT, 0, 0, STATIC, d.tick)), V)
     assert out.track_state == TRACK_SEEN and out.track_dm == static + 1 and out.system_error
+    assert [t.near != -1 for t in d.state.tracks] == [True, False, False]
     assert out.demand == EMERGENCY and out.reasons & R_ENVELOPE
+
+
+def test_a_disputed_sighting_ahead_of_the_track_is_another_obstacle_and_each_keeps_its_curves():
+    """Ahead of where the remembered obstacle can be (its worst case less two accuracies), a
+    sighting is another obstacle (tracks.py): a second track at the sighting with its own
+    (static) speed, the oncoming one kept where it was, each on its own curves. Neither is
+    inside its EBI, so no emergency; the oncoming one, one period on, is still remembered."""
+    cfg = Config()
+    oncoming = V + 2000
+    static, fast = curves(cfg, V, 0, 0, V, 0).ebi_dm, curves(cfg, V, 0, 0, oncoming, 0).ebi_dm
+    d = normal_driver(cfg, M1)
+    firm(d, fast + 2000, V, closing=oncoming, cycles=1)
+    out = d.cycle(with_channel(present(d.tick, static + 1, closing=V), 0, Report(ABSENT, 0, 0, STATIC, d.tick)), V)
+    assert out.track_state == TRACK_SEEN and out.track_dm == static + 1 and out.system_error
+    first, second, third = d.state.tracks
+    share = V - V * (1000 - cfg.speed_error_permille) // 1000      # the speed error's share of a closing speed
+    assert first.closing == share and second.closing == 2000 + share and third.near == -1
+    assert (fast + 1800) * UNITS_PER_DM < second.near < (fast + 2000) * UNITS_PER_DM   # two periods closing
+    assert out.demand < EMERGENCY and not out.reasons & R_ENVELOPE
 
 
 def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():

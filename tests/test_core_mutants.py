@@ -352,12 +352,12 @@ def test_an_infinite_table_time_step_is_refused_as_a_configuration_error(text):
 def test_initial_state_is_init_at_the_start_node_with_every_counter_zero(topology, modules):
     """The monitor starts in INIT at the table's start node, unlatched, nothing seen, every
     counter (disagreement per module, healthy, cycle, error cycles, calm) at 0."""
-    from monitor.core.types import INIT, State
+    from monitor.core.types import INIT, NO_TRACKS, State
 
     core = Core(Config(topology=topology))
     start = core.setup.table.start
     assert initial_state(core.setup) == State(INIT, start, 0, 0, (0,) * modules, 0, 0, 0, 0, (0,) * modules,
-                                              plaus=((-1, 0, 0, 0, 0, 0, 0),) * (2 * modules))
+                                              tracks=NO_TRACKS, plaus=((-1, 0, 0, 0, 0, 0, 0),) * (2 * modules))
 
 
 def test_healthy_and_error_cycles_count_from_zero():

@@ -6,10 +6,13 @@ standstill, confirmation 1..12 cycles, forgetting after 1..50 cycles, sensor ran
 never-braking and a random table), drawn so that the distance often sits exactly on a curve
 (EBI, SBI, warning, the zones' alpha2, alpha1, alpha1 + margin) or on the sensor range, or
 one dm either side, the speed at 0 or 1 cm/s, and the obstacle lost from sight (issue 29)
-for exactly forget_cycles or the confirmation, or one cycle either side. Every output of
-every cycle must be equal, the track's included; the sequences must hit every boundary of
-the obstacle memory and the holds; mutants of the twin one dm, one unit or one cycle off
-must be caught.
+for exactly forget_cycles or the confirmation, or one cycle either side; and 1,000 sequences
+of several obstacles ahead of each train (SEVERAL), in and out of sight, so that the memory
+holds several tracks at once (monitor/core/tracks.py). Every output of every cycle must be
+equal, the track's included; the sequences must hit every boundary of the obstacle memory
+and the holds, and every rule of the tracks (a track ahead of or beyond the others, a
+farther one measured, absorbed, a full memory merging); mutants of the twin one dm, one
+unit or one cycle off, or dropping a track instead of merging, must be caught.
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ import pytest
 
 from monitor.core import braking, cycle
 from monitor.core import table as table_mod
+from monitor.core import tracks as tracks_mod
 from monitor.core.config import Config, forget_cycles
 from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
@@ -42,6 +46,7 @@ class Case(NamedTuple):
     age_max: int = 0     # report ages drawn from 0..age_max ms
     adverse: float = 0.0  # share of cycles reporting a slippery track / degraded brakes
     steps: int = STEPS   # cycles per sequence (longer than forget_cycles, so that forgetting is reached)
+    obstacles: int = 0   # several_inputs: this many obstacles ahead of each train (0: random_inputs)
 
 
 # forget_cycles: 50 (the default 5 s), 10, 1, 20, 4 (350 ms rounded up) and 7; sensor ranges
@@ -69,6 +74,14 @@ CASES = (
          "m2", "never", 1500, age_max=300, adverse=0.3),
     Case("m2-shipped-plausibility", Config(), "m2", "shipped", 1000, age_max=100),
 )
+
+# several obstacles ahead of each train (monitor/core/tracks.py, issue 38 item 2): sensors
+# declared 20 m accurate (a track's window reaches 40 m either side of where it can be),
+# obstacles 0 to 20 m, 40 to 80 m, 80 to 400 m or 400 to 800 m apart, each in and out of
+# sight, the sensors reporting the nearest in sight; forgetting in 1.5 s (1 s for one
+# module's), implausible jumps believed again after 0.5 s
+SEVERAL = Case("m2-several-obstacles", Config(forget_ms=1500, plausibility_ms=500, distance_accuracy_dm=200,
+                                              sensor_range_dm=6000), "m2", "shipped", 1000, steps=64, obstacles=4)
 
 
 def _table(case: Case) -> bytes:
@@ -175,6 +188,48 @@ def module_masks(cfg: Config, n: int, steps: int, seed: int) -> np.ndarray:
     return np.where(disputing, masks, everyone).astype(np.int64)
 
 
+def several_inputs(case: Case, n: int, steps: int, seed: int) -> dict:
+    """(steps, n) inputs with `case.obstacles` obstacles ahead of each train, each static,
+    oncoming or receding, in and out of sight (each cycle 15 % change), the picture the
+    nearest one in sight, within the declared accuracy: the sightings create tracks ahead of
+    and beyond the ones held, measure farther tracks, absorb two tracks into one and fill the
+    memory (tracks.py). Obstacles are spaced within the accuracy (one track or two), within
+    two to four accuracies (two tracks that one sighting can measure both of), or farther. A
+    jump to a farther obstacle mostly passes through a blind cycle (a picture that jumps
+    farther in sight is implausible: plausibility.py); disputes as module_masks draws them."""
+    cfg = case.config
+    rng = np.random.default_rng([seed, 2])
+    a, k = cfg.distance_accuracy_dm, case.obstacles
+    out = {key: np.zeros((steps, n), dtype=bool if key == "present" else np.int64) for key in fc.INPUT_KEYS}
+    v = rng.integers(0, np.where(rng.random(n) < 0.5, 1500, 4000) + 1, n)
+    gap = _pick(rng, n * k, (2, 4, 3, 1), (rng.integers(0, a + 1, n * k), rng.integers(2 * a, 4 * a + 2, n * k),
+                                           rng.integers(4 * a, 20 * a, n * k), rng.integers(20 * a, 40 * a, n * k)))
+    gap = gap.reshape(n, k)
+    first = rng.integers(100, min(cfg.sensor_range_dm + 2000, MAX_DISTANCE_DM // 2), n)
+    pos = (first[:, None] + np.cumsum(gap, axis=1) - gap[:, :1]).astype(float)        # dm
+    own = _pick(rng, n * k, (6, 2, 1), (0, rng.integers(0, 1500, n * k), -rng.integers(0, 1000, n * k))).reshape(n, k)
+    kind = rng.integers(0, 3, (n, k))
+    visible = rng.random((n, k)) < 0.5
+    last = np.full(n, -1)
+    rows = np.arange(n)
+    for s in range(steps):
+        v = np.clip(v + _pick(rng, n, (8, 1, 1), (0, rng.integers(-50, 51, n), -v)), 0, 4000)
+        visible ^= rng.random((n, k)) < 0.15
+        shown = visible & (pos >= 0) & (pos <= MAX_DISTANCE_DM)
+        j = np.where(shown, pos, np.inf).argmin(axis=1)        # the nearest in sight
+        present = shown[rows, j]
+        d = np.clip(np.round(pos[rows, j]).astype(np.int64) + rng.integers(-a, a + 1, n), 0, MAX_DISTANCE_DM)
+        present &= ~((last >= 0) & (d > last + 2 * a) & (rng.random(n) < 0.6))    # a blind cycle first
+        closing = np.clip(v + own[rows, j], -MAX_CLOSING_CMS, MAX_CLOSING_CMS)
+        for key, value in (("present", present), ("distance_dm", d), ("speed_cms", v), ("closing_cms", closing),
+                           ("obstacle", kind[rows, j])):
+            out[key][s] = value
+        last = np.where(present, d, -1)
+        pos -= (v[:, None] + own) * cfg.period_ms / 10000.0    # cm/s x ms = 1e-5 m; 10,000 of them a dm
+    out["modules"] = module_masks(cfg, n, steps, seed)
+    return out
+
+
 def directed_inputs(case: Case) -> dict:
     """Trains at 20 m/s (rows 6, 7: standing), static obstacles, one row a train:
     0-2: an obstacle at EBI, then reported beyond the warning curve (its cause gone) for
@@ -262,9 +317,11 @@ def test_an_obstacle_lost_from_sight_is_remembered_until_forgotten_or_passed(cas
 
 @functools.lru_cache(maxsize=None)
 def _random_trace(index: int) -> dict:
-    """The twin over case `index`'s random sequences (shared by the comparison and the coverage counts)."""
-    case = CASES[index]
-    return fc.twin_trace(_setup(case), random_inputs(case, case.sequences, case.steps, seed=1000 + index))
+    """The twin over case `index`'s random sequences (shared by the comparison and the coverage
+    counts); index len(CASES): SEVERAL's."""
+    case = CASES[index] if index < len(CASES) else SEVERAL
+    inputs = several_inputs if case.obstacles else random_inputs
+    return fc.twin_trace(_setup(case), inputs(case, case.sequences, case.steps, seed=1000 + index))
 
 
 @pytest.fixture(scope="module", params=CASES, ids=[c.name for c in CASES])
@@ -403,10 +460,91 @@ def test_random_sequences_reach_every_memory_and_hold_boundary():
             expect += ["table's demand held", "table's hold let go while moving"]
         for name in expect:
             assert hits[name] >= 5, (case.name, name, hits)
+    # the obstacles seen one after the other (SEVERAL) count too: a farther sighting now
+    # creates a track of its own beside the one it counts down (tracks.py), which the random
+    # pictures' jumps often move off again
+    hits = memory_and_hold_boundaries(SEVERAL.config, _random_trace(len(CASES)))
+    total = {k: total.get(k, 0) + x for k, x in hits.items()}
     # (taking the farther sighting needs forget_cycles of them in a row: rarer)
     rare = {"the farther sighting taken once the track is forgotten": 50}
     for name, count in total.items():
         assert count >= rare.get(name, 100), (name, total)
+
+
+def core_track_rules(setup: cycle.Setup, trace: dict, trains: int, monkeypatch) -> dict:
+    """Replay the first `trains` trains of a twin trace through the real core, watching its
+    tracks.assign, absorbed and insert, and count the cycles in which each rule of tracks.py
+    applied: a sighting ahead of a held track that creates another; one beyond every held
+    track that creates one (confirmed, with the nearest counted down meanwhile); a disputed
+    one that creates one; a farther track than the nearest measured; tracks absorbed into
+    the one measured; a full memory merging its two farthest; three tracks held."""
+    events: set = set()
+    assign, absorbed, insert = cycle.assign, cycle.absorbed, cycle.insert
+
+    def watch_assign(tracks, distance_dm, accuracy_dm, creates):
+        slot, create = assign(tracks, distance_dm, accuracy_dm, creates)
+        held = [tracks_mod.relation(t.near, t.far, distance_dm, accuracy_dm) for t in tracks if t.near != -1]
+        if create and held:
+            events.add("created ahead of a track" if any(r != tracks_mod.BEYOND for r in held)
+                       else "created beyond every track")
+        if slot >= 1:
+            events.add("a farther track measured")
+        return slot, create
+
+    def watch_absorbed(*args):
+        gone = absorbed(*args)
+        if gone:
+            events.add("absorbed")
+        return gone
+
+    def watch_insert(tracks, *args):
+        if all(t.near != -1 for t in tracks):
+            events.add("a full memory merged")
+        return insert(tracks, *args)
+
+    monkeypatch.setattr(cycle, "assign", watch_assign)
+    monkeypatch.setattr(cycle, "absorbed", watch_absorbed)
+    monkeypatch.setattr(cycle, "insert", watch_insert)
+    counts: dict = {}
+    try:
+        for i in range(trains):
+            inp = {k: (trace[k][:, i] if k in trace else None) for k in fc.INPUT_KEYS}
+            state = cycle.initial_state(setup)
+            for k in range(len(inp["present"])):
+                events.clear()
+                inputs = fc.cycle_inputs(setup, k, *(inp[key] for key in fc.INPUT_KEYS))
+                state, out = cycle.step(setup, state, inputs, k * setup.config.period_ms)
+                created = events & {"created ahead of a track", "created beyond every track"}
+                if "created beyond every track" in events and not out.system_error \
+                        and out.track_state == TRACK_CONFIRMING:
+                    events.add("confirmed beyond: created while the nearest is counted down")
+                if created and out.system_error:
+                    events.add("created by a disputed sighting")
+                if all(t.near != -1 for t in state.tracks):
+                    events.add("three tracks held")
+                for e in events:
+                    counts[e] = counts.get(e, 0) + 1
+    finally:
+        monkeypatch.undo()
+    return counts
+
+
+def test_twin_equals_core_with_several_obstacles():
+    """SEVERAL's sequences (several_inputs): every output of every cycle equal."""
+    trace = _random_trace(len(CASES))
+    bad, cycles = fc.first_mismatch(_setup(SEVERAL), trace, SEVERAL.sequences)
+    assert bad is None, bad
+    assert cycles == SEVERAL.sequences * SEVERAL.steps
+
+
+def test_several_obstacles_reach_every_rule_of_the_tracks(monkeypatch):
+    """The sequences the twin is compared on with several obstacles reach each rule of
+    tracks.py in the real core, counted on the first 500 trains."""
+    counts = core_track_rules(_setup(SEVERAL), _random_trace(len(CASES)), 500, monkeypatch)
+    for name in ("created ahead of a track", "created beyond every track", "a farther track measured", "absorbed",
+                 "confirmed beyond: created while the nearest is counted down", "created by a disputed sighting",
+                 "a full memory merged", "three tracks held"):
+        assert counts.get(name, 0) >= 100, (name, counts)
 
 
 def test_twin_curves_equal_the_core_curves():
@@ -429,13 +567,13 @@ def test_twin_curves_equal_the_core_curves():
                 assert tuple(int(x[i]) for x in got) == tuple(want), (case.name, i, service)
 
 
-def _mutant_caught(monkeypatch, name: str, wrapper) -> bool:
+def _mutant_caught(monkeypatch, name: str, wrapper, case: Case = CASES[0], trains: int = 300) -> bool:
     monkeypatch.setattr(fc, name, wrapper(getattr(fc, name)))
-    case = CASES[0]
     setup = _setup(case)
-    trace = fc.twin_trace(setup, random_inputs(case, 300, case.steps, seed=5))
+    inputs = several_inputs if case.obstacles else random_inputs
+    trace = fc.twin_trace(setup, inputs(case, trains, case.steps, seed=5))
     monkeypatch.undo()
-    return fc.first_mismatch(setup, trace, 300)[0] is not None
+    return fc.first_mismatch(setup, trace, trains)[0] is not None
 
 
 def test_a_twin_one_dm_off_is_caught(monkeypatch):
@@ -495,3 +633,16 @@ def test_a_twin_whose_table_hold_ignores_the_zone_is_caught(monkeypatch):
         return lambda level, demand, speed, zone_free: table_hold(level, demand, speed, zone_free & False)
     assert _mutant_caught(monkeypatch, "table_hold", sticky)
 
+
+
+def test_a_twin_dropping_the_farthest_track_instead_of_merging_is_caught(monkeypatch):
+    """A full memory that forgets the farthest of its tracks and the new one when another
+    is seen, instead of merging the two farthest (tracks.insert), differs from the core on
+    SEVERAL's sequences."""
+    def dropping(merge_into_full):
+        def mutant(stack, trains, new):
+            ext = np.concatenate((stack[:, :, trains], new[:, None, :]), axis=1)
+            ext = ext[:, np.argsort(ext[0], axis=0, kind="stable"), np.arange(trains.size)]
+            stack[:, :, trains] = ext[:, :fc.TRACKS]          # the nearest ones, the farthest dropped
+        return mutant
+    assert _mutant_caught(monkeypatch, "_merge_into_full", dropping, SEVERAL, 1000)

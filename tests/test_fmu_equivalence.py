@@ -37,6 +37,7 @@ from monitor.core.braking import curves
 from monitor.core.config import check, forget_cycles, gradient_accel_mms2
 from monitor.core.freshness import channel_status
 from monitor.core.memory import UNITS_PER_DM, far_travel, near_travel
+from monitor.core.tracks import assign
 from monitor.core.types import (ABSENT, DEGRADED, MAX_DISTANCE_DM, NO_DISTANCE, NO_TRACK, PRESENT, R_DISPUTE,
                                 R_ENVELOPE, R_IMPLAUSIBLE, R_LATCH, R_MEMORY, R_PERCEPTOR, R_STALE, TRACK_CONFIRMING,
                                 TRACK_FORGOTTEN,
@@ -370,6 +371,42 @@ def module_memory_steps(b: Bytes, cfg) -> list:
     return steps + [(blind, 1)] * max(1, min(n, 80))
 
 
+def several_tracks_steps(b: Bytes, cfg) -> list:
+    """Issue 38 item 2, several obstacles: a confirmed obstacle A, then one to four more
+    sightings (every channel or one module; each after a clear cycle that drops plausibility's
+    references) ahead of A by more than two declared accuracies, beyond it, or inside its
+    window (a confirmed one absorbs a second track there); four distinct ones fill the three
+    tracks and merge the farthest two. Then blind cycles around forget_ms's and
+    forget_single_ms's counts, at the same speed or standing."""
+    speed = b.pick([0, 0, 1 + b.u16() % 3000])
+    v = speed_mps(speed)
+    acc = 2 * cfg.distance_accuracy_dm
+    d = b.u16() % (min(MAX_DISTANCE_DM, cfg.sensor_range_dm + 3 * acc) + 1)
+    closing = b.pick([speed, speed, speed + b.u16() % 2000])
+
+    def seen_at(dm: int, every: bool) -> StepInput:
+        ch = ChannelInput(1, metres(max(0, min(MAX_DISTANCE_DM, dm))), closing_mps(closing), b.u8() % 3, True)
+        chans = [ch] * CHANNELS if every else _module_sees([CLEAR] * CHANNELS, b.u8() % (2 * cfg.modules), ch)
+        return StepInput(tuple(chans), v)
+
+    steps = [(seen_at(d, True), 1)]
+    for _ in range(1 + b.u8() % 4):
+        where = b.u8() % 4
+        if where == 0:
+            other = d - acc - 1 - b.pick([0, 0, b.u16() % 3000])
+        elif where == 1:
+            other = d + acc + 1 + b.pick([0, 0, b.u16() % 3000])
+        elif where == 2:
+            other = d + b.pick([acc, -acc, 0, b.u16() % (acc + 1)])
+        else:
+            other = b.u16() % (MAX_DISTANCE_DM + 1)
+        steps += [(StepInput((CLEAR,) * CHANNELS, v), 1), (seen_at(other, b.u8() % 3 != 0), 1)]
+    fc = b.pick([forget_cycles(cfg), forget_cycles(cfg, single=True)])
+    n = fc + b.pick([-1, 0, 0, 1, b.u8() % 20])
+    blind = StepInput((CLEAR,) * CHANNELS, b.pick([v, 0.0]))
+    return steps + [(blind, 1)] * max(1, min(n, 90))
+
+
 def flapping_steps(b: Bytes, cfg) -> list:
     """One channel drops the obstacle now and then while its partner keeps it, with calm
     spells shorter than `persistence_cycles` (the disagreement adds up to a perceptor
@@ -458,7 +495,7 @@ def frozen_steps(b: Bytes, cfg) -> list:
 
 
 # the blocks a sequence is made of, each as often as its weight says (one byte picks one)
-BLOCK_WEIGHTS = ((random_step, 3), (edge_steps, 4), (release_steps, 1), (memory_steps, 4), (flapping_steps, 2), (service_release_steps, 2), (table_hold_steps, 5), (module_memory_steps, 4), (frozen_steps, 1))
+BLOCK_WEIGHTS = ((random_step, 3), (edge_steps, 4), (release_steps, 1), (memory_steps, 4), (flapping_steps, 2), (service_release_steps, 2), (table_hold_steps, 5), (module_memory_steps, 4), (frozen_steps, 1), (several_tracks_steps, 4))
 BLOCKS = tuple(block for block, weight in BLOCK_WEIGHTS for _ in range(weight))
 
 
@@ -540,6 +577,24 @@ def coverage_probe(seen: Counter, setup):
         seen["the farther sighting taken once the track is forgotten"] += (beyond and out.track_state == TRACK_FORGOTTEN
                                                                           and out.track_dm == out.distance_dm)
         seen["table demand held"] += after.table_held > setup.action[out.node] and after.mode != 0
+        # issue 38 item 2, several obstacles (tracks.py), judged on the tracks before and after
+        held_before = sum(t.near != NO_TRACK for t in before.tracks)
+        held_after = sum(t.near != NO_TRACK for t in after.tracks)
+        voted = out.distance_dm != NO_DISTANCE
+        seen["a second obstacle remembered ahead of the track"] += (
+            voted and held_before >= 1 and held_after > held_before
+            and out.distance_dm * UNITS_PER_DM < before.track_near - 2 * cfg.distance_accuracy_dm * UNITS_PER_DM)
+        seen["a farther confirmed sighting remembered beside the track"] += (
+            beyond and held_after > held_before and out.track_state == TRACK_CONFIRMING)
+        seen["a confirmed picture absorbed a second track"] += (voted and not out.system_error
+                                                               and held_after < held_before)
+        seen["three tracks held, the farthest two merged"] += (
+            voted and held_before == 3 and held_after == 3
+            and assign(before.tracks, out.distance_dm, cfg.distance_accuracy_dm, True) == (-1, True)
+            and not (out.system_error and not any(statuses[2 * m] == PRESENT == statuses[2 * m + 1]
+                                                  for m in range(cfg.modules))))
+        seen["the nearest forgotten, a farther one still remembered"] += (
+            out.track_state == TRACK_FORGOTTEN and not voted and out.track_dm != NO_DISTANCE)
         # issue 38 item 3: plausibility
         n = cfg.channels
         seen["channel made implausible"] += any(after.plaus[i][6] and not before.plaus[i][6] for i in range(n))
@@ -635,7 +690,11 @@ EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance 
          "weak track forgotten after exactly forget_single_ms", "weak track one cycle short of forgotten",
          "a module's sighting between near and far took the track",
          # a farther sighting is evidence, not a replacement (issue 38 item 2)
-         "a farther confirmed sighting counted against the track", "the farther sighting taken once the track is forgotten")
+         "a farther confirmed sighting counted against the track", "the farther sighting taken once the track is forgotten",
+         # several obstacles (issue 38 item 2, tracks.py)
+         "a second obstacle remembered ahead of the track", "a farther confirmed sighting remembered beside the track",
+         "a confirmed picture absorbed a second track", "three tracks held, the farthest two merged",
+         "the nearest forgotten, a farther one still remembered")
 KINDS = ("band 2 on", "band 3 on", "one band", "release at standstill", "revocable release", "gradient > 0",
          "slippery < 1000", "2oo2", "speed error > 0", "FMU start values")
 

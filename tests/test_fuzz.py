@@ -426,7 +426,8 @@ def demand_below_the_level_held(setup, new, out):
 
 
 def track_never_ages(setup, new, out):
-    return new._replace(track_cycles=0), out._replace(track_cycles=0)     # a track held unseen stays 0 cycles old
+    aged = tuple(t._replace(cycles=0) for t in new.tracks)                # a track held unseen stays 0 cycles old
+    return new._replace(tracks=aged), out._replace(track_cycles=0)
 
 
 @pytest.mark.parametrize("change, what", [(node_beyond_the_table, "node"),

@@ -2,7 +2,8 @@
 `railguard run --scenario hidden-behind-3000m-40`. A at 3,000 m is seen for 0.3 s, then hidden
 from every channel until 72.5 s; every channel reports B at 5,800 m instead. The rule itself
 (a farther confirmed sighting is evidence against the track, never a replacement):
-tests/test_core_memory.py, in the mutation kill set."""
+tests/test_core_memory.py, in the mutation kill set. And several obstacles at once
+(`oncoming-behind-leaver-10`): B, seen beyond A, is remembered beside it (tests/test_tracks.py)."""
 from __future__ import annotations
 
 import json
@@ -12,8 +13,8 @@ import sys
 import pytest
 
 
-def _run(tmp_path, table: str, *extra: str) -> dict:
-    out = subprocess.run([sys.executable, "-m", "railguard", "run", "--scenario", "hidden-behind-3000m-40", "--table",
+def _run(tmp_path, table: str, *extra: str, scenario: str = "hidden-behind-3000m-40") -> dict:
+    out = subprocess.run([sys.executable, "-m", "railguard", "run", "--scenario", scenario, "--table",
                           table, "--out", str(tmp_path), "--no-plot", "--json", *extra], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
@@ -34,3 +35,15 @@ def test_an_obstacle_hidden_behind_a_farther_one_is_remembered_and_the_train_sto
     blunt.write_text("[monitor]\ndistance_accuracy_dm = 60000\n")
     s = _run(tmp_path, table, "--monitor-config", str(blunt))
     assert s["outcome"] == "collision" and s["track"]["held_longest_s"] < 10
+
+
+@pytest.mark.parametrize("table", ["m1", "m2"])
+def test_an_obstacle_seen_beyond_a_remembered_one_is_remembered_too_and_the_train_stands(tmp_path, table):
+    """A (380 m) leaves; B, oncoming at 40 m/s, is seen for 1 s beyond it, then the sensors see
+    nothing (beyond the declared 400 m that is within their declaration). The blindness
+    forgets A (in range), not B (beyond range): B's curves stop the train, which B then
+    reaches standing (with one remembered obstacle B was never kept and hit the train at
+    about 9 m/s, both tables)."""
+    s = _run(tmp_path, table, scenario="oncoming-behind-leaver-10")
+    assert s["outcome"] == "struck_at_standstill" and 50 <= s["margin_m"] <= 150, s
+    assert s["track"]["forgotten"] == 1 and s["track"]["held_longest_s"] >= 25

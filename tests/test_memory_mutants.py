@@ -274,7 +274,7 @@ def test_the_initial_state_remembers_nothing():
     d = normal_driver(Config())
     start = d.setup.table.start
     assert tuple(initial_state(d.setup)) == (INIT, start, MAINTAIN, 0, (0, 0, 0), 0, 0, 0, 0, (0, 0, 0),
-                                             0, -1, -1, 0, 0, 0, False, False, ((-1, 0, 0, 0, 0, 0, 0),) * 6)
+                                             0, ((-1, -1, 0, 0, 0, False),) * 3, False, ((-1, 0, 0, 0, 0, 0, 0),) * 6)
 
 
 def test_the_memory_defaults_are_the_documented_ones():

@@ -310,3 +310,33 @@ def test_a_declaration_without_speed_error_collides_one_period_late_without_the_
     assert obligations.value(found, late.v) > 10                  # a real train speed, m/s
     shipped = obligations.Lemmas(exact, False, 0, 0)
     assert all(obligations.refute(f)[0] == "proved" for _, _, f in shipped.steps() + shipped.kind_steps("static"))
+
+
+def test_the_several_tracks_keep_every_obstacle_at_or_before_its_position_and_can_fail(monkeypatch):
+    """Issue 38 item 2: the release invariant's (M) through what the memory does to its tracks,
+    proved on the shipped observe and merge run symbolically; an observe that remembers half
+    an oncoming obstacle's speed, or that moves a track to the sighting plus one unit, and a
+    merge that keeps the farther position, are refuted."""
+    from monitor.core import memory, tracks
+    from verification.physics import release
+
+    assert all(r.proved for r in release.tracks_results())
+    real_observe, real_merge = memory.observe, tracks.merge
+
+    def half_speed(near, far, closing, distance_dm, obstacle_cms, age_now, confirmed, sighted):
+        return real_observe(near, far, closing, distance_dm, obstacle_cms // 2 if obstacle_cms > 0 else obstacle_cms,
+                            age_now, confirmed, sighted)
+
+    def one_beyond(*args, **kw):
+        n, f, c, a = real_observe(*args, **kw)
+        return (n + 1 if n != -1 else n), f, c, a
+
+    def farther(a, b):
+        m = real_merge(a, b)
+        return m._replace(near=a.near if a.near > b.near else b.near)
+
+    for name, fake, module in (("observe", half_speed, memory), ("observe", one_beyond, memory),
+                               ("merge", farther, tracks)):
+        monkeypatch.setattr(module, name, fake)
+        assert any(r.status == "refuted" for r in release.tracks_results()), fake.__name__
+        monkeypatch.undo()

@@ -276,3 +276,44 @@ def test_the_likeliest_failure_is_classified_as_issue_29_asks():
     assert failure_class(failure(range(30, 30 + 75), -16.0), cfg).startswith("beyond the forgetting time")
     assert failure_class(failure(range(30, 30 + 75), -9.0), cfg) == "survivable"        # likelier than before
     assert failure_class(failure(range(30, 30 + 74), -16.0), cfg) == "survivable"       # 7.4 s < forget_ms
+
+
+def test_an_object_behind_is_drawn_one_encounter_in_twenty_and_seen_past_the_missed_obstacle():
+    """Issue 38 item 2: with P_BEHIND a farther object stands BEHIND_M behind the obstacle; a
+    channel that misses the obstacle reports it. Every channel blind for 3 s from 2 s into
+    the braking, seeing the object 300 m behind instead of nothing: the train stops as far from
+    the obstacle as with plain blindness. With forget_ms = 1 s plain blindness forgets the
+    obstacle and the train collides; seen past, the jump of every channel by 300 m is
+    implausible (DEGRADED: no evidence), so the obstacle is held. A sequence written before
+    objects behind existed has none."""
+    ds = st.NOMINAL.sample(np.random.default_rng(4), 6000)
+    assert np.mean([d.behind[0] for d in ds]) == pytest.approx(st.P_BEHIND, rel=0.2)
+    d = st.Disturbance.none()
+    d.behind[0] = True
+    assert d.log_likelihood() == pytest.approx(math.log(st.P_BEHIND) - math.log1p(-st.P_BEHIND), abs=1e-9)
+    assert d.count() == 1 and d.events(100)[0]["kind"] == "object_behind"
+    old = {k: v for k, v in d.as_lists().items() if k != "behind"}
+    assert st.Disturbance.from_lists(d.as_lists()).behind[0] and not st.Disturbance.from_lists(old).behind[0]
+    d.blind[20:50] = True
+    plain = st.Disturbance.none()
+    plain.blind[20:50] = True
+    seen_past = st.closed_loop("m2", ENC, d, CORNER, keep=True)
+    blind = st.closed_loop("m2", ENC, plain, CORNER)
+    assert not seen_past["failure"] and abs(seen_past["closest_m"] - blind["closest_m"]) < 1.0
+    behind = [row for row in seen_past["rows"] if row[5] is not None and all(
+        r.status == 1 and r.distance_dm >= (row[5] + 299) * 10 for r in row[1])]
+    assert len(behind) >= 20                              # the blind cycles: every channel reports the object behind
+    short = Config(forget_ms=1000)
+    assert st.closed_loop("m2", ENC, plain, CORNER, short)["failure"]
+    assert not st.closed_loop("m2", ENC, d, CORNER, short)["failure"]
+
+
+def test_the_object_behind_estimate_as_users_run_it():
+    out = subprocess.run([sys.executable, "-m", "verification.stress.module_miss", "--case", "behind", "--runs", "6",
+                          "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)["rows"]
+    assert [r["object_behind"] for r in rows] == [True, False]
+    for r in rows:
+        assert r["runs"] == 6 and 0 <= r["failures"] <= 6 and r["ci95"][0] <= r["p_given"] <= r["ci95"][1]
+        assert 0 <= r["changed_by_the_object"] <= 6 and r["p_object_behind"] == st.P_BEHIND

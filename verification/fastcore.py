@@ -13,12 +13,14 @@ stale and implausible). What remains of a cycle is computed here
 with the same integer formulas as monitor/core, written again on arrays: the braking curves
 of `monitor.core.braking` (EBD, EBI, SBI, warning: every term rounded to the safe side), the
 table's zones under normal conditions, the observation, the table step, the obstacle memory
-of `monitor.core.memory` (a PRESENT picture every module sees is confirmed and creates or
-replaces the track, one that some modules see creates it or brings it nearer; an ABSENT
-one, all channels fresh, is evidence that it is gone: the track is predicted worst case each
-cycle, forgotten after `forget_cycles` of evidence inside `sensor_range_dm`, or once passed),
-the supervision ladder (warning, service at SBI, emergency at EBI, held inside SBI) on the
-nearer of the voted and the remembered obstacle, the table's hold (its demand kept while the
+of `monitor.core.memory` and `monitor.core.tracks` (up to TRACKS remembered obstacles a
+train, nearest first: a PRESENT picture measures the nearest track whose window holds it, a
+confirmed one also absorbing the farther ones it measures, or is remembered beside them,
+the two farthest merged when every slot is held; a confirmed picture beyond a track, and an
+ABSENT one with all channels fresh, are evidence that it is gone: each track is predicted
+worst case each cycle, forgotten after `forget_cycles` of evidence inside `sensor_range_dm`,
+or once passed), the supervision ladder (warning, service at SBI, emergency at EBI, held
+inside SBI) on the voted and every remembered obstacle, the table's hold (its demand kept while the
 voted picture is in the table's zones), the hold of the demand sent (lowered after
 `release_confirm_cycles` cycles asking for less; an emergency only if revocable; released at
 standstill) and the reason bits. `agrees_with_core` replays sampled trains through the real
@@ -39,7 +41,7 @@ from monitor.core.memory import UNITS_PER_DM
 from monitor.core.types import (
     ABSENT, EMERGENCY, MAINTAIN, MAX_COUNT, NO_DISTANCE, NO_TRACK, NORMAL, PRESENT, R_DISPUTE, R_ENVELOPE, R_LATCH,
     R_IMPLAUSIBLE, R_MEMORY, R_SBI, R_STALE, R_SYSTEM_ERROR, R_TABLE, R_WARNING, SERVICE, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE,
-    TRACK_PASSED, TRACK_SEEN, Inputs, Report, Train,
+    TRACK_PASSED, TRACK_SEEN, TRACKS, Inputs, Report, Train,
 )
 
 I64 = np.int64
@@ -227,6 +229,62 @@ def far_travel(speed_cms, error_permille: int, accel_mms2: int, period_ms: int) 
     return np.maximum(run, 0)
 
 
+# the rows of VectorMonitor.slots: types.Track's fields, each a (TRACKS, n) array (slot i of
+# train j at [i, j]: slot-major, so that a train's values broadcast along the trains)
+SLOT_FIELDS = ("near", "far", "closing", "cycles", "absent", "strong")
+
+
+def _any_slot(mask: np.ndarray) -> np.ndarray:
+    """mask.any(axis=0) of a (TRACKS, n) mask, slot by slot (faster for few slots)."""
+    out = mask[0]
+    for row in mask[1:]:
+        out = out | row
+    return out
+
+
+def _max_slot(values: np.ndarray) -> np.ndarray:
+    """values.max(axis=0) of a (TRACKS, n) array, slot by slot."""
+    out = values[0]
+    for row in values[1:]:
+        out = np.maximum(out, row)
+    return out
+
+
+def _ordered(stack: np.ndarray) -> np.ndarray:
+    """tracks.ordered on a (fields, TRACKS, n) stack whose first field is `near`: each
+    train's slots nearest first, empty ones last, equal positions in their slot order (a
+    stable sort). Only the trains out of order are sorted; the stack is reordered in place."""
+    key = stack[0].view(np.uint64)                # NO_TRACK (-1) reads as the largest: empty slots last
+    wrong = _any_slot(key[1:] < key[:-1])
+    if wrong.any():
+        trains = np.nonzero(wrong)[0]
+        perm = np.argsort(key[:, trains], axis=0, kind="stable")
+        stack[:, :, trains] = stack[:, perm, trains]
+    return stack
+
+
+def _merge_into_full(stack: np.ndarray, trains: np.ndarray, new: np.ndarray) -> None:
+    """tracks.insert with every slot held, for the `trains` of a (fields, TRACKS, n) stack
+    (SLOT_FIELDS, then the slots' ages and states; `new`: (fields, trains.size), the new
+    track of each of them): the held tracks and the new one in order (stable: the new one
+    after equal positions), the two farthest merged (tracks.merge: the nearer near, the
+    farther far, the faster closing, the fewer cycles, no evidence, strong if either) with
+    the nearer one's age, held. In place."""
+    ext = np.concatenate((stack[:, :, trains], new[:, None, :]), axis=1)
+    ext = ext[:, np.argsort(ext[0], axis=0, kind="stable"), np.arange(trains.size)]
+    a, b = TRACKS - 1, TRACKS
+    merged = ext[:, a].copy()                     # (its age: the nearer one's)
+    merged[0] = np.minimum(ext[0, a], ext[0, b])
+    merged[1] = np.maximum(ext[1, a], ext[1, b])
+    merged[2] = np.maximum(ext[2, a], ext[2, b])
+    merged[3] = np.minimum(ext[3, a], ext[3, b])
+    merged[4] = 0
+    merged[5] = ext[5, a] | ext[5, b]
+    merged[7] = TRACK_HELD
+    stack[:, :a, trains] = ext[:, :a]
+    stack[:, a, trains] = merged
+
+
 class TablePolicy:
     """The table step of the core on arrays: node = next[node, obs], demand = action[node]."""
 
@@ -257,14 +315,12 @@ class VectorMonitor:
         self.held = np.zeros(n, dtype=I64)          # State.held: the demand level held
         self.calm = np.zeros(n, dtype=I64)
         self.table_held = np.zeros(n, dtype=I64)    # State.table_held
-        # State.track_*: the remembered obstacle (1e-5 m, NO_TRACK: none)
-        self.near = np.full(n, NO_TRACK, dtype=I64)
-        self.far = np.full(n, NO_TRACK, dtype=I64)
-        self.track_closing = np.zeros(n, dtype=I64)
-        self.track_cycles = np.zeros(n, dtype=I64)
-        self.track_absent = np.zeros(n, dtype=I64)
+        # State.tracks: the remembered obstacles, TRACKS slots a train, nearest first, empty
+        # slots last (monitor/core/tracks.py); (fields, TRACKS, n): the fields of types.Track
+        # (SLOT_FIELDS; positions in 1e-5 m, NO_TRACK: the slot is empty; strong 0 or 1)
+        self.slots = np.zeros((len(SLOT_FIELDS), TRACKS, n), dtype=I64)
+        self.slots[:2] = NO_TRACK
         self.kept = np.zeros(n, dtype=bool)
-        self.strong = np.zeros(n, dtype=bool)       # State.track_strong
         # State.plaus per module (its two channels report alike here): plausibility.check's
         # reference distance (-1: none), its report tick, the last report's tick and closing
         # speed, the least and the most run since, and whether the module is implausible
@@ -282,51 +338,96 @@ class VectorMonitor:
         self.risk = np.asarray(setup.table.risk, dtype=I64) if policy is None else None
 
     def _memory(self, present, confirmed, several, dist, speed, toward, own, age, stale) -> tuple:
-        """Step 4 of the cycle: the track after this cycle's picture (memory.observe and
-        forget). A confirmed picture creates or replaces the track (farther than it can be,
-        it is evidence that the track is gone and replaces it once forgotten), a disputed one
-        (some module sees it) creates it or brings it nearer; ABSENT with every channel fresh is
-        evidence that it is gone, for forget_cycles if the track is strong (confirmed or
-        `several` modules saw it), else for forget_single. (t_state, remembered, far, t_age): the TRACK_* state,
-        whether the track's curves supervise it beside the voted obstacle's, the far position
-        judged this cycle (before a forgotten or passed track is cleared), and the age of
-        the sighting the track took this cycle (0 if it kept its position)."""
+        """Step 4 of the cycle: the remembered obstacles after this cycle's picture
+        (monitor/core/tracks.py with memory.observe and forget, slot by slot). A sighting
+        measures the nearest track whose window holds it (tracks.assign; a confirmed one
+        also absorbs every farther track it measures, keeping the faster closing speed) or,
+        ahead of or beyond them all, is a new track (in the first empty slot; with none, the
+        two farthest merge: tracks.insert); a confirmed sighting beyond a track, and ABSENT
+        with every channel fresh, are evidence that it is gone (forget_cycles if the track
+        is strong: confirmed or `several` modules saw it, else forget_single); the tracks
+        are kept ordered nearest first.
+        Every present picture here is a module's sighting (it may create a track).
+        Returns (t_state, t_cycles, t_dm, far, ages, states): the outputs track_state,
+        track_cycles and track_dm; the far position of the track they report on, judged this
+        cycle (before a forgotten or passed nearest track is cleared; NO_TRACK: none); and per
+        slot (TRACKS, n), in the slots' new order, the age of a sighting it took this cycle
+        (0 if it kept its position) and its TRACK_* state."""
         cfg = self.cfg
-        had = self.near != NO_TRACK
+        N, F, C, Y, A, S = self.slots                          # (TRACKS, n) each
+        occ = N != NO_TRACK
         units = dist * UNITS_PER_DM
-        # a confirmed sighting beyond where the track can be (by more than two reports' declared
-        # accuracy) is evidence that the track is gone, as ABSENT is; B replaces it once forgotten
-        beyond = present & confirmed & had & (units > self.far + 2 * cfg.distance_accuracy_dm * UNITS_PER_DM)
-        lost = (~present & had) | beyond              # the track not seen this cycle
-        # a sighting sets the position: confirmed, no track yet, nearer than the track or
-        # where it can be (up to far: every present picture here is a module's sighting)
-        takes = present & ~beyond & (confirmed | ~had | (units <= np.maximum(self.near, self.far)))
-        held = present & ~takes & ~beyond             # a farther disputed sighting: kept
-        far = np.where(takes, units, np.where(lost, self.far - far_travel(speed, cfg.speed_error_permille,
-                                                                          self.setup.track_accel, cfg.period_ms),
-                                              self.far))
-        passed = lost & (far < 0)
-        evidence = lost & ~passed & ~stale & (far <= cfg.sensor_range_dm * UNITS_PER_DM)
-        count = self.track_absent + 1
-        strong = (had & self.strong) | (~beyond & (confirmed | several))
-        forgotten = evidence & (count >= np.where(strong, self.setup.forget_cycles, self.setup.forget_single))
-        gone = passed | forgotten
-        kept = lost & ~gone
-        after = beyond & gone                         # B, seen by every module, is the track now
-        t_state = np.select([takes, held, passed, forgotten, evidence, lost],     # (after: forgotten or passed)
-                            [TRACK_SEEN, TRACK_HELD, TRACK_PASSED, TRACK_FORGOTTEN, TRACK_CONFIRMING, TRACK_HELD],
-                            TRACK_NONE)
-        self.track_absent = np.where(evidence & ~forgotten, count, 0)
-        self.track_cycles = np.where(kept | held, np.minimum(self.track_cycles + 1, MAX_COUNT), 0)
-        self.near = np.where(takes | after, units, np.where(gone, NO_TRACK, self.near))
-        self.far = np.where(after, units, np.where(gone, NO_TRACK, far))
-        self.strong = (strong & ~gone) | after
+        acc2 = 2 * cfg.distance_accuracy_dm * UNITS_PER_DM
+        beyond = occ & (units > F + acc2)                     # tracks.relation: BEYOND (memory.seen_beyond)
+        measures = occ & ~beyond & (units >= N - acc2)        # MEASURES (else AHEAD: another obstacle)
+        # tracks.assign: the first track the sighting is not beyond; it measures it, or is ahead
+        # of it (or beyond them all): a new track (the occupied slots come first)
+        cand = present & occ & ~beyond
+        first = np.empty_like(cand)                           # the first candidate, and the slots after it
+        after = np.empty_like(cand)
+        before = np.zeros_like(present)
+        for i in range(TRACKS):
+            first[i], after[i] = cand[i] & ~before, before
+            before = before | cand[i]
+        is_slot = first & measures
+        hit = _any_slot(is_slot)
+        create = present & ~hit
+        gone = measures & after & (confirmed & hit)                            # tracks.absorbed
+        # the measured track (memory.observe, sighted): confirmed, or nearer than its worst
+        # case, or where it can be (up to far): it takes the position; else it is held there
+        seen = is_slot & (confirmed | (units <= N) | (units <= F))
+        held_m = is_slot & ~seen
         own_closing = np.maximum(toward - own, 0)
-        self.track_closing = np.where((confirmed & ~beyond) | after | (present & ~had), own_closing,
-                                      np.where(present & ~beyond, np.maximum(own_closing, self.track_closing),
-                                               np.where(gone, 0, self.track_closing)))
-        remembered = kept | (present & ~confirmed)
-        return t_state, remembered, np.where(after, units, far), np.where(takes | after, age, 0)
+        # the others (not measured, not absorbed): the train's least travel, evidence, forget
+        other = occ & ~is_slot & ~gone
+        far = F - far_travel(speed, cfg.speed_error_permille, self.setup.track_accel, cfg.period_ms)
+        passed = other & (far < 0)
+        evidence = (other & ~passed & ((confirmed & beyond) | ~(present | stale))
+                    & (far <= cfg.sensor_range_dm * UNITS_PER_DM))
+        count = A + 1
+        single = self.setup.forget_single
+        forgotten = evidence & (count >= single + (self.setup.forget_cycles - single) * S)   # (strong: 0 or 1)
+        confirming = evidence & ~forgotten
+        kept = other & ~passed & ~forgotten
+        # each slot's TRACK_* state: what the nearest's was (before a new track is inserted);
+        # the held ones' (seen, held or confirming: the others are emptied) go with them
+        first_state = np.where(is_slot[0], np.where(seen[0], TRACK_SEEN, TRACK_HELD),
+                               np.where(kept[0], np.where(confirming[0], TRACK_CONFIRMING, TRACK_HELD),
+                                        np.where(forgotten[0], TRACK_FORGOTTEN,
+                                                 np.where(passed[0], TRACK_PASSED, TRACK_NONE))))
+        states = np.where(seen, TRACK_SEEN, np.where(confirming, TRACK_CONFIRMING, TRACK_HELD))
+        first_lost = forgotten[0] | passed[0]
+        first_far = far[0]
+        # (an absorbed track's closing speed stays remembered in the one that measures it)
+        taken = np.where(confirmed, own_closing, np.maximum(own_closing, C))
+        if gone.any():
+            taken = np.maximum(taken, _max_slot(np.where(gone, C, 0)))
+        stack = np.stack((np.where(seen, units, np.where(is_slot | kept, N, NO_TRACK)),
+                          np.where(seen, units, np.where(is_slot, F, np.where(kept, far, NO_TRACK))),
+                          np.where(is_slot, taken, np.where(kept, C, 0)),
+                          np.where(held_m | kept, np.minimum(Y + 1, MAX_COUNT), 0),
+                          np.where(confirming, count, 0),
+                          np.where(is_slot, S | confirmed | several, np.where(kept, S, 0)),
+                          np.where(seen, age, 0),
+                          states))
+        if create.any():                                      # tracks.insert
+            free = stack[0] == NO_TRACK
+            r = np.nonzero(create)[0]
+            u = units[r]
+            new = np.stack((u, u, own_closing[r], np.zeros_like(u), np.zeros_like(u), confirmed[r] | several[r],
+                            age[r], np.full_like(u, TRACK_SEEN)))
+            room = _any_slot(free)[r]                          # the first empty slot
+            stack[:, free[:, r[room]].argmax(axis=0), r[room]] = new[:, room]
+            if not room.all():                                 # none: the two farthest merge
+                _merge_into_full(stack, r[~room], new[:, ~room])
+        _ordered(stack)
+        self.slots = stack[:len(SLOT_FIELDS)]
+        near, cycles, ages, states = stack[0], stack[3], stack[6], stack[7]
+        has = near[0] != NO_TRACK
+        t_dm = np.where(has, near[0] // UNITS_PER_DM, NO_DISTANCE)
+        t_state = np.where(first_lost, first_state, np.where(has, states[0], TRACK_NONE))
+        t_cycles = np.where(first_lost, 0, cycles[0])
+        return t_state, t_cycles, t_dm, np.where(first_lost, first_far, stack[1][0]), ages, states
 
     def _plausibility(self, sees: np.ndarray, dist, closing, report_tick) -> np.ndarray:
         """Step 1b of the cycle (plausibility.check) for each module's channels: `sees`
@@ -365,10 +466,12 @@ class VectorMonitor:
         obstacle, track, brake, age_ms None: 0; modules None: every module sees what is
         present (a bit mask; a train whose mask lacks a module has a dispute where present).
         Returns the outputs (OUTPUT_KEYS), the policy's own demand (`table`, before the
-        table's hold; `table_demand` after it), the track's `far` position judged this cycle
-        (1e-5 m, what passing and the sensor range are judged on; NO_TRACK without a track),
-        `dispute`, and the curves and zones of the supervised obstacle (the voted one, else
-        the remembered one)."""
+        table's hold; `table_demand` after it), `track_far`: the `far` position, judged this
+        cycle, of the track the outputs track_state/track_dm/track_cycles report on (1e-5 m,
+        what passing and the sensor range are judged on: the nearest track, or the nearest
+        of last cycle if this cycle forgot or passed it; NO_TRACK without one), `dispute`,
+        the curves of the supervised obstacle (the voted one, else the nearest remembered
+        one) and the zone limits the papers' risk was read with (`alpha1_dm`, `alpha2_dm`)."""
         cfg = self.cfg
         present = np.asarray(present, dtype=bool)
         speed = np.asarray(speed_cms, dtype=I64)
@@ -399,41 +502,62 @@ class VectorMonitor:
         dispute = present & (mask != everyone) & ~implausible
         error = dispute | implausible                   # the table holds its node
         several = present & ((mask & (mask - 1)) != 0)      # two modules or more (two bits set)
-        t_state, remembered, far, t_age = self._memory(present, present & ~error, several, dist, speed, toward, own,
-                                                       age, implausible)
-        track_dm = np.where(self.near == NO_TRACK, NO_DISTANCE, self.near // UNITS_PER_DM)
-        # the supervised obstacle: the voted one, else the remembered one; a disputed picture
-        # with a track has both, each on its own curves (cycle.py step 5), the higher demand
+        confirmed = present & ~error
+        t_state, t_cycles, track_dm, far, ages, states = self._memory(present, confirmed, several, dist, speed,
+                                                                      toward, own, age, implausible)
+        # 5. every remembered obstacle on its own curves (its closing speed, the age of a
+        # sighting it took this cycle), unless it is the confirmed picture itself; the nearest
+        # of them is what the risk reads (cycle.py step 5). The supervised obstacle of the
+        # `curves` output: the voted one, else the nearest remembered one
+        near, closing = self.slots[0], self.slots[2]
+        watched = (near != NO_TRACK) & ~(confirmed & (near == dist * UNITS_PER_DM))
+        remembered = _any_slot(watched)
+        first = watched.argmax(axis=0)
+        n = present.shape[0]
+        rows = np.arange(n)
+        n_dm = np.where(remembered, near[first, rows] // UNITS_PER_DM, NO_DISTANCE)
+        n_toward = closing[first, rows] + own
+        n_age = ages[first, rows]
         sup = present | remembered
-        sup_dist = np.where(present, dist, track_dm)
-        t_toward = self.track_closing + own
-        sup_toward = np.where(present, toward, t_toward)
-        sup_age = np.where(present, age, t_age)
-        c = curves(cfg, speed, track, brake, sup_toward, sup_age)
-        env, warn = supervision(sup, sup_dist, c, self.held == EMERGENCY)
-        alpha1, alpha2 = zone_alphas(cfg, speed, sup_toward, sup_age)
+        sup_dist = np.where(present, dist, n_dm)
+        sup_toward = np.where(present, toward, n_toward)
+        sup_age = np.where(present, age, n_age)
+        held_emergency = self.held == EMERGENCY
+        # the remembered obstacles the supervised one does not cover (beside a voted one, or
+        # beyond the nearest): their curves in the same call, after the trains' (k, r: slot, train)
+        k, r = np.nonzero(watched & (present | (np.arange(TRACKS)[:, None] != first)))
+        both = curves(cfg, np.concatenate((speed, speed[r])), np.concatenate((track, track[r])),
+                      np.concatenate((brake, brake[r])), np.concatenate((sup_toward, closing[k, r] + own[r])),
+                      np.concatenate((sup_age, ages[k, r])))
+        c = Curves(*(x[:n] for x in both))
+        env, warn = supervision(sup, sup_dist, c, held_emergency)
+        if r.size:
+            env_t, warn_t = supervision(True, near[k, r] // UNITS_PER_DM, Curves(*(x[n:] for x in both)),
+                                        held_emergency[r])
+            np.maximum.at(env, r, env_t)
+            warn[r[warn_t]] = True
+        memory = _any_slot(watched & (states != TRACK_SEEN))   # a remembered obstacle no channel shows
+        # the zones of the supervised obstacle; the papers' risk at the nearest (monitor/core/
+        # risk.py): a remembered one nearer than the voted one (q), or a DEGRADED picture with
+        # nothing seen or remembered read as an obstacle at 0 m (b), in the same call
+        q = np.nonzero(present & remembered & (n_dm < dist))[0]
+        b = np.nonzero(~sup & implausible)[0]
+        all1, all2 = zone_alphas(cfg, np.concatenate((speed, speed[q], speed[b])),
+                                 np.concatenate((sup_toward, n_toward[q], speed[b])),
+                                 np.concatenate((sup_age, n_age[q], zeros[b])))
+        alpha1, alpha2 = all1[:n], all2[:n]
         sup_zone = np.where(sup, zone_of(sup_dist, alpha1, alpha2, cfg.warning_margin_dm), 0)
         zone = np.where(present, sup_zone, np.where(implausible, 3, 0))  # the voted picture alone; DEGRADED: 3
-        both = present & remembered
-        if both.any():
-            c_t = curves(cfg, speed, track, brake, t_toward, t_age)
-            env_t, warn_t = supervision(both, track_dm, c_t, self.held == EMERGENCY)
-            env, warn = np.maximum(env, env_t), warn | warn_t
-            nearer = both & (track_dm < dist)       # the papers' risk at the nearer of the two
-            t_a1, t_a2 = zone_alphas(cfg, speed, t_toward, t_age)
-            sup_dist = np.where(nearer, track_dm, sup_dist)
-            alpha1, alpha2 = np.where(nearer, t_a1, alpha1), np.where(nearer, t_a2, alpha2)
+        if q.size or b.size:
+            alpha1[q], alpha2[q] = all1[n:n + q.size], all2[n:n + q.size]
+            alpha1[b], alpha2[b] = all1[n + q.size:], all2[n + q.size:]
+            sup_dist[q], sup_dist[b] = n_dm[q], 0
+            sup = sup.copy()
+            sup[b] = True
         warn = warn | dispute
         spd = np.where(toward < 0, 0, np.where(toward < cfg.fast_closing_cms, 1, 2))
         obst = zeros + STATIC if obstacle is None else np.where(present, obstacle, STATIC)
         obs = (((zone * 3 + spd) * 3 + obst) * 2 + track) * 2 + brake if self.m2 else zone
-        # the papers' risk at the supervised (nearest) obstacle, monitor/core/risk.py; a
-        # DEGRADED picture with nothing seen or remembered reads as an obstacle at 0 m
-        blind = ~sup & implausible
-        if blind.any():
-            b_a1, b_a2 = zone_alphas(cfg, speed, speed, zeros)
-            sup, sup_dist = sup | blind, np.where(blind, 0, sup_dist)
-            alpha1, alpha2 = np.where(blind, b_a1, alpha1), np.where(blind, b_a2, alpha2)
         r1 = np.where(sup, r1_ppm(np.where(sup, sup_dist, 0), alpha1), 0)
         r2 = np.where(sup, r2_ppm(np.where(sup, sup_dist, 0), alpha1, alpha2), 0)
         score = 3 * zone + 2 * spd + 2 * obst + track + 2 * brake
@@ -458,24 +582,27 @@ class VectorMonitor:
         self.applied = final
         reasons = (np.where(table > 0, R_TABLE, 0) | np.where(env == EMERGENCY, R_ENVELOPE, 0)
                    | np.where(env == SERVICE, R_SBI, 0) | np.where(final > demand, R_LATCH, 0)
-                   | np.where(warn, R_WARNING, 0) | np.where(remembered & (t_state != TRACK_SEEN), R_MEMORY, 0)
+                   | np.where(warn, R_WARNING, 0) | np.where(memory, R_MEMORY, 0)
                    | np.where(dispute, R_SYSTEM_ERROR | R_DISPUTE, 0)
                    | np.where(implausible, R_SYSTEM_ERROR | R_STALE | R_IMPLAUSIBLE, 0))
         out = {"demand": final, "reasons": reasons, "observation": obs, "node": np.array(node, copy=True),
-               "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": self.track_cycles,
+               "distance_dm": dist, "warning": warn, "track_dm": track_dm, "track_cycles": t_cycles,
                "track_state": t_state, "r1_ppm": r1, "r2_ppm": r2, "risk_score": score,
                "risk_category": risk_category(score), "table_risk_ppm": self.risk[node] if self.risk is not None else np.zeros_like(node), "track_far": far, "table": action, "table_demand": table, "curves": c,
                "alpha1_dm": alpha1, "alpha2_dm": alpha2, "dispute": dispute, "implausible": implausible}
-        # the remembered obstacle moved for the next period (and a sighting's age), worst case for the train
-        has = self.near != NO_TRACK
-        moved = self.near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.track_closing,
-                                        cfg.period_ms + t_age)
-        self.near = np.where(has, np.maximum(moved, 0), NO_TRACK)
+        # the remembered obstacles moved for the next period (and a sighting's age), worst case
+        # for the train, each at its own closing speed; then nearest first again
+        has = near != NO_TRACK
+        moved = near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, closing,
+                                   cfg.period_ms + ages)
+        self.slots[0] = np.where(has, np.maximum(moved, 0), NO_TRACK)
+        _ordered(self.slots)
         return out
 
 
 # what twin_trace records besides the outputs (as `twin_<key>`): the policy's demand, the
-# table's after its hold, the track's far position; for the tests' coverage counts
+# table's after its hold, the far position of the track the outputs report on (VectorMonitor.step);
+# for the tests' coverage counts
 TWIN_EXTRAS = ("table", "table_demand", "track_far")
 
 

@@ -53,7 +53,9 @@ FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2"
              "rg_effective_decel_mms2", "rg_run_dm", "rg_speed_after_cms", "rg_band_stop", "rg_obstacle_run_dm",
              "rg_cap_dm", "rg_zone", "rg_supervision_demand", "rg_supervised_demand", "rg_combine", "rg_hold",
              "rg_table_hold", "rg_decide", "rg_accel_run", "rg_near_travel", "rg_far_travel", "rg_observe", "rg_forget",
-             "rg_track_dm", "rg_seen_beyond", "rg_plaus_anchor", "rg_plaus_continues", "rg_plausibility")
+             "rg_track_dm", "rg_seen_beyond", "rg_plaus_anchor", "rg_plaus_continues", "rg_plausibility",
+             "rg_relation", "rg_assign", "rg_absorbed", "rg_merge", "rg_order_pair", "rg_ordered", "rg_insert_full",
+             "rg_insert", "rg_remembered_demand")
 # assertions inside rg_step that WP proves and EVA uses
 STEP_ASSERTIONS = ("present_in_range",)
 # assertions named hint_* inside the contracted functions: steps for the SMT provers on the way

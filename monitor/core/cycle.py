@@ -18,6 +18,7 @@ from .config import RELEASE_REVOCABLE, forget_cycles, track_accel_mms2
 from .envelope import combine, hold, keep_held, supervision_demand, table_hold, zone
 from .freshness import channel_status
 from .memory import UNITS_PER_DM, distance_dm, far_travel, forget, near_travel, observe, seen_beyond
+from .tracks import absorbed, assign, insert, ordered
 from .plausibility import NO_REFERENCE, check as plausibility_check
 from .observation import OBSERVATIONS, m2_observation, speed_class
 from .risk import CRITICAL, MAX_SCORE, PPM, r1_ppm, r2_ppm, risk_category, risk_score
@@ -26,7 +27,8 @@ from .types import (
     ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
     NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_IMPLAUSIBLE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC,
-    TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Outputs, State,
+    NO_TRACKS, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, TRACKS, Inputs, Outputs, State,
+    Track,
 )
 from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
 
@@ -73,7 +75,7 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
 def initial_state(setup: Setup) -> State:
     modules = (0,) * setup.config.modules
     return State(INIT, setup.table.start, MAINTAIN, 0, modules, 0, 0, 0, 0, modules,
-                 plaus=(NO_REFERENCE,) * setup.config.channels)
+                 tracks=NO_TRACKS, plaus=(NO_REFERENCE,) * setup.config.channels)
 
 
 def _train(train) -> tuple[int, int, int, bool]:
@@ -184,43 +186,53 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     err = cfg.speed_error_permille
     own_speed = speed * (1000 - err) // 1000          # the train's share of a closing speed
     toward = speed if closing is None else closing
-    near, far, t_closing, t_age = state.track_near, state.track_far, state.track_closing, 0
-    t_cycles, t_absent = 0, 0
     confirmed = distance != NO_DISTANCE and sys_status == PRESENT and not sys_error
-    # modules that see it with both channels: one creates the track, two (or a confirmed
+    # modules that see it with both channels: one creates a track, two (or a confirmed
     # picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms
     seeing = sum(statuses[2 * m] == PRESENT and statuses[2 * m + 1] == PRESENT for m in range(cfg.modules))
-    strong = state.track_strong                     # (only ever set with a track)
-    # a confirmed sighting farther than the remembered obstacle can be, beyond the two reports'
-    # declared accuracy: the sensors report their nearest object, so it is evidence that the
-    # remembered one is gone, confirmed as ABSENT is (forget), never an instant replacement
-    beyond = confirmed and seen_beyond(near, far, distance, cfg.distance_accuracy_dm)
-    if distance != NO_DISTANCE and not beyond:
-        near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
-                                              confirmed, seeing > 0)
-        strong = strong or confirmed or seeing >= 2  # (a sighting that creates nothing is neither)
-        if near == NO_TRACK:
-            t_state = TRACK_NONE
-        elif near == distance * UNITS_PER_DM:
-            t_state = TRACK_SEEN
-        else:                                       # a farther disputed sighting: the track was not seen
-            t_state, t_cycles = TRACK_HELD, _inc(state.track_cycles)
-    elif near != NO_TRACK:                          # the track not seen: evidence, or held
-        far -= far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
-        evidence = (beyond or sys_status == ABSENT and not sys_error) and not stale
-        t_absent, t_state = forget(state.track_absent, evidence, far <= cfg.sensor_range_dm * UNITS_PER_DM,
-                                   far < 0, setup.forget_cycles if strong else setup.forget_single)
-        if t_state == TRACK_FORGOTTEN or t_state == TRACK_PASSED:
-            near, far, t_closing, strong = NO_TRACK, NO_TRACK, 0, False
-            if beyond:                              # gone: the farther sighting is the track now (the
-                near, far, t_closing, t_age = observe(near, far, t_closing, distance, toward - own_speed, age,
-                                                      confirmed, confirmed)
-                strong = confirmed                  # state says what happened to the old one)
-        else:
-            t_cycles = _inc(state.track_cycles)
-    else:
-        t_state = TRACK_NONE
-    t_dm = distance_dm(near)
+    # several obstacles (tracks.py): the sighting measures the nearest track whose window
+    # holds it, creates one ahead of or beyond them all; a confirmed sighting beyond a track
+    # is evidence that it is gone (the sensors report their nearest object), counted as
+    # ABSENT is (forget), never an instant replacement
+    tracks = list(state.tracks) if len(state.tracks) == TRACKS else list(NO_TRACKS)
+    ages, states = [0] * TRACKS, [TRACK_NONE] * TRACKS
+    slot, create, gone = -1, False, ()
+    if distance != NO_DISTANCE:
+        slot, create = assign(tuple(tracks), distance, cfg.distance_accuracy_dm, confirmed or seeing > 0)
+        gone = absorbed(tuple(tracks), slot, distance, cfg.distance_accuracy_dm) if confirmed and slot >= 0 else ()
+    evidence_absent = sys_status == ABSENT and not sys_error
+    for i, t in enumerate(tracks):
+        if t.near == NO_TRACK:
+            continue
+        if i == slot:
+            near, far, t_closing, ages[i] = observe(t.near, t.far, t.closing, distance, toward - own_speed, age,
+                                                    confirmed, seeing > 0)
+            seen_now = near == distance * UNITS_PER_DM
+            states[i] = TRACK_SEEN if seen_now else TRACK_HELD   # (a farther disputed sighting: not seen)
+            tracks[i] = Track(near, far, t_closing, 0 if seen_now else _inc(t.cycles), 0,
+                              t.strong or confirmed or seeing >= 2)
+        elif i in gone:                               # the same obstacle as the one measured: its
+            kept = tracks[slot]                       # closing speed stays remembered there
+            tracks[slot] = kept._replace(closing=kept.closing if kept.closing > t.closing else t.closing)
+            tracks[i], states[i] = Track(), TRACK_NONE
+        else:                                         # not seen: evidence, or held
+            far = t.far - far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
+            beyond = confirmed and seen_beyond(t.near, t.far, distance, cfg.distance_accuracy_dm)
+            absent, states[i] = forget(t.absent, (beyond or evidence_absent) and not stale,
+                                       far <= cfg.sensor_range_dm * UNITS_PER_DM, far < 0,
+                                       setup.forget_cycles if t.strong else setup.forget_single)
+            lost = states[i] == TRACK_FORGOTTEN or states[i] == TRACK_PASSED
+            tracks[i] = Track() if lost else Track(t.near, far, t.closing, _inc(t.cycles), absent, t.strong)
+    first_lost = states[0] == TRACK_FORGOTTEN or states[0] == TRACK_PASSED   # what happened to the nearest
+    first_state = states[0]
+    if create:
+        near, far, t_closing, t_age = observe(NO_TRACK, NO_TRACK, 0, distance, toward - own_speed, age, confirmed, True)
+        tracks, ages, states = insert(tracks, ages, states, Track(near, far, t_closing, 0, 0, confirmed or seeing >= 2),
+                                      t_age, TRACK_SEEN)
+    tracks, ages, states = ordered(tracks, ages, states)
+    t_dm = distance_dm(tracks[0].near)
+    t_state = first_state if first_lost else (states[0] if tracks[0].near != NO_TRACK else TRACK_NONE)
+    t_cycles = 0 if first_lost else tracks[0].cycles
 
     # 5. braking curves at the measured speed (docs/supervision.md) for the voted obstacle and
     #    for the remembered one (unless a confirmed picture just replaced it: then they are the
@@ -234,11 +246,19 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     else:
         z = 3 if sys_status == DEGRADED else 0
         env, warn = MAINTAIN, False
-    remembered = near != NO_TRACK and not (confirmed and near == distance * UNITS_PER_DM)
-    if remembered:
-        curve = curves(cfg, speed, track, brake, t_closing + own_speed, t_age)
-        env_t, warn_t = supervision_demand(True, t_dm, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
+    # every remembered obstacle on its own curves (its closing speed and the age of a sighting
+    # it took this cycle), unless it is the confirmed picture itself; the nearest of them is
+    # what the risk reads, and one that no channel shows this cycle is the memory's reason
+    nearest, memory_reason = -1, False
+    for i, t in enumerate(tracks):
+        if t.near == NO_TRACK or (confirmed and t.near == distance * UNITS_PER_DM):
+            continue
+        curve = curves(cfg, speed, track, brake, t.closing + own_speed, ages[i])
+        env_t, warn_t = supervision_demand(True, distance_dm(t.near), curve.ebi_dm, curve.sbi_dm, curve.warning_dm,
+                                           state.latched)
         env, warn = combine(env, env_t, MAINTAIN), warn or warn_t
+        nearest = i if nearest < 0 else nearest
+        memory_reason = memory_reason or states[i] != TRACK_SEEN
     spd = speed_class(toward, cfg.fast_closing_cms)
     obs = z if setup.model == "m1" else m2_observation(z, spd, obstacle, track, brake)
 
@@ -246,9 +266,9 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # with nothing remembered reads as an obstacle at 0 m, as the observation reads it critical
     r1 = r2 = 0
     near_dm = distance
-    if remembered and (distance == NO_DISTANCE or t_dm < distance):
-        near_dm = t_dm
-        alpha1, alpha2 = _zone_limits(cfg, speed, t_closing + own_speed, t_age)
+    if nearest >= 0 and (distance == NO_DISTANCE or distance_dm(tracks[nearest].near) < distance):
+        near_dm = distance_dm(tracks[nearest].near)
+        alpha1, alpha2 = _zone_limits(cfg, speed, tracks[nearest].closing + own_speed, ages[nearest])
     elif distance == NO_DISTANCE and sys_status == DEGRADED:
         near_dm = 0
         alpha1, alpha2 = _zone_limits(cfg, speed, speed, 0)
@@ -302,7 +322,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         reasons |= R_STALE
     if implausible:
         reasons |= R_IMPLAUSIBLE
-    if remembered and t_state != TRACK_SEEN:
+    if memory_reason:
         reasons |= R_MEMORY
     if error:
         reasons |= R_SYSTEM_ERROR | (0 if train_ok else R_TRAIN_INPUT)
@@ -336,12 +356,14 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # sighting also for the report's age (the remembered curves count no age: a position is
     # moved by the age once, at the speed of the cycle that saw it, not at every later and
     # perhaps slower speed; issue 30 item 4)
-    if near != NO_TRACK:
-        near -= near_travel(speed, err, setup.track_accel, t_closing, cfg.period_ms + t_age)
-        near = near if near > 0 else 0
+    for i, t in enumerate(tracks):
+        if t.near != NO_TRACK:
+            moved = t.near - near_travel(speed, err, setup.track_accel, t.closing, cfg.period_ms + ages[i])
+            tracks[i] = t._replace(near=moved if moved > 0 else 0)
+    tracks = ordered(tracks, ages, states)[0]
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
-                      table_demand if mode != INIT else MAINTAIN, near, far, t_closing, t_cycles, t_absent,
-                      keep and speed > 0 and held > MAINTAIN, strong, tuple(plaus))
+                      table_demand if mode != INIT else MAINTAIN, tuple(tracks),
+                      keep and speed > 0 and held > MAINTAIN, tuple(plaus))
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state, r1, r2, score, risk_category(score), setup.table.risk[node])
     return new_state, out

@@ -1,14 +1,14 @@
 """Obstacle memory (DESIGN.md section 14): an obstacle lost from sight is not forgotten.
 
-The last voted obstacle is kept as a track and predicted forward every cycle, worst case for
+A voted obstacle is kept as a track and predicted forward every cycle, worst case for
 the train: a static obstacle stays where it was, a receding one is taken to stop at once, an
 oncoming one keeps closing at its last speed, and the train runs at its measured speed plus
 the speed error, accelerating under traction and downhill. The report's age is counted once, at
 the end of the cycle that saw it, at that cycle's speed: the remembered curves count no age (a
 train that has braked since would otherwise count the age's travel at a lower speed than the
-one it ran at; issue 30 item 4). The curves supervise the nearer of
-the voted and the remembered obstacle (cycle.py), so a blind spell never lowers a demand while
-the train is inside a remembered obstacle's curve.
+one it ran at; issue 30 item 4). The curves supervise the voted and every
+remembered obstacle (cycle.py), so a blind spell never lowers a demand while the train is
+inside a remembered obstacle's curve.
 
 What is remembered follows the voter's safe side, not its unanimity: a picture in which any
 module sees the obstacle with both its channels creates the track (`observe`).
@@ -18,7 +18,8 @@ unanimous, or every module sees something farther than the remembered obstacle c
 (`seen_beyond`: the sensors report their nearest object), for `forget_ms` while the
 remembered position lies inside the sensors' declared range (`sensor_range_dm`); or the train
 has passed the remembered position (its least possible travel took it beyond). A farther
-sighting never replaces the track at once: it becomes the track once the old one is forgotten.
+sighting never replaces the track: it is remembered beside it (several obstacles at once,
+tracks.py; the functions here act on one of them).
 
 Positions are integers in 1e-5 m, the unit of cm/s x ms, so that dead reckoning is exact:
 one period at v cm/s is v * period_ms units; `UNITS_PER_DM` of them make a decimetre.

@@ -80,6 +80,21 @@ class Inputs(NamedTuple):
 
 
 NO_TRACK = -1            # no remembered obstacle
+TRACKS = 3               # remembered obstacles kept at once (monitor/core/tracks.py; RG_TRACKS in C)
+
+
+class Track(NamedTuple):
+    """One remembered obstacle (memory.py), positions in 1e-5 m (cm/s x ms)."""
+
+    near: int = NO_TRACK  # worst case (nearest) position; NO_TRACK: the slot is empty
+    far: int = NO_TRACK   # the remembered position less the train's least travel (< 0: passed)
+    closing: int = 0      # its own speed towards the train, cm/s (>= 0)
+    cycles: int = 0       # cycles since it was last voted
+    absent: int = 0       # cycles in a row of positive evidence that it is gone
+    strong: bool = False  # confirmed or seen by two modules at once: forget_ms, not forget_single_ms
+
+
+NO_TRACKS = (Track(),) * TRACKS
 
 
 class State(NamedTuple):
@@ -94,14 +109,21 @@ class State(NamedTuple):
     calm: int = 0        # cycles in a row in which the held demand could have been lowered
     agree: tuple = (0, 0, 0)  # per module: consecutive cycles without disagreement (clears `disagree`)
     table_held: int = 0  # the table's demand held while its obstacle is in the table's zones
-    track_near: int = NO_TRACK   # remembered obstacle, worst case (nearest), in 1e-5 m (cm/s x ms)
-    track_far: int = NO_TRACK    # the remembered position less the train's least travel (< 0: passed)
-    track_closing: int = 0       # the remembered obstacle's own speed towards the train, cm/s (>= 0)
-    track_cycles: int = 0        # cycles since the obstacle was last voted
-    track_absent: int = 0        # cycles in a row of positive evidence that it is gone
+    tracks: tuple = ()           # the remembered obstacles (tracks.py): TRACKS slots, nearest first, empty last
     kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)
-    track_strong: bool = False   # the track was confirmed or seen by two modules at once: forget_ms, not forget_single_ms
     plaus: tuple = ()            # per channel: plausibility.check's state (NO_REFERENCE while not PRESENT)
+
+    @property
+    def track(self) -> Track:
+        """The nearest remembered obstacle (an empty Track if none)."""
+        return self.tracks[0] if self.tracks else Track()
+
+    track_near = property(lambda self: self.track.near, doc="the nearest track's worst-case position")
+    track_far = property(lambda self: self.track.far, doc="the nearest track's least position")
+    track_closing = property(lambda self: self.track.closing, doc="the nearest track's own closing speed")
+    track_cycles = property(lambda self: self.track.cycles, doc="cycles since the nearest track was voted")
+    track_absent = property(lambda self: self.track.absent, doc="the nearest track's evidence cycles")
+    track_strong = property(lambda self: self.track.strong, doc="the nearest track is strong")
 
     @property
     def latched(self) -> bool:

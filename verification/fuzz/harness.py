@@ -378,33 +378,29 @@ class Harness:
         return self._track_problem(before, s, out)
 
     def _track_problem(self, before, s, out) -> str:
-        """The obstacle memory: the track state 0..5; a distance (0..60000 dm) exactly when a
-        track is remembered (seen, held or confirming; or forgotten or passed while a farther
-        confirmed sighting, the last evidence, took its place), in the outputs and the state alike; its
-        unvoted cycles counting up while held or confirming, 0 otherwise; the memory reason
-        whenever a remembered obstacle no channel shows is supervised (held, confirming), never
-        without a track, and beside a seen one only in a doubtful picture (a system error: a
-        confirmed picture replaces the track, whose curves are then the voted ones)."""
+        """The obstacle memory: the track state 0..5; a distance (0..60000 dm) exactly when an
+        obstacle is remembered after the cycle (the nearest is seen, held or confirming; or it
+        was forgotten or passed and another, farther one is remembered: issue 38's several
+        tracks), in the outputs and the state alike; its unvoted cycles at least 1 and at most
+        one more than any track had while held or confirming, 0 otherwise; the memory reason
+        whenever the nearest remembered obstacle is not shown (held, confirming), and never
+        without a remembered obstacle (beside a seen nearest one it is a farther one's)."""
         if not all(type(x) is int for x in (out.track_state, out.track_dm, out.track_cycles, s.track_near,
                                             s.track_cycles)):
             return f"track outputs {out.track_state!r}, {out.track_dm!r}, {out.track_cycles!r} not integers"
         if not 0 <= out.track_state <= 5:
             return f"track state {out.track_state}"
-        # forgotten on a farther confirmed sighting's evidence: that sighting is the track now (issue 38)
-        taken_over = (out.track_state in (TRACK_FORGOTTEN, TRACK_PASSED) and out.distance_dm != NO_DISTANCE
-                      and not out.system_error and out.track_dm == out.distance_dm)
-        tracked = out.track_state in _TRACKED or taken_over
+        remembered = s.track_near != NO_TRACK
+        tracked = out.track_state in _TRACKED or (out.track_state in (TRACK_FORGOTTEN, TRACK_PASSED) and remembered)
         if not (0 <= out.track_dm <= 60000 if tracked else out.track_dm == NO_DISTANCE):
             return f"track distance {out.track_dm} in track state {out.track_state}"
-        if (s.track_near != NO_TRACK) is not tracked or s.track_near < NO_TRACK:
+        if remembered is not tracked or any(t.near < NO_TRACK for t in s.tracks):
             return f"state track_near {s.track_near} in track state {out.track_state}"
-        cycles = min(before.track_cycles + 1, MAX_COUNT) if out.track_state in _UNSEEN else 0
-        if out.track_cycles != cycles or s.track_cycles != cycles:
-            return (f"track cycles {out.track_cycles} (state {s.track_cycles}) in track state {out.track_state}, "
-                    f"{before.track_cycles} before")
+        most = min(max(t.cycles for t in before.tracks) + 1, MAX_COUNT) if before.tracks else 1
+        if not (1 <= out.track_cycles <= most if out.track_state in _UNSEEN else out.track_cycles == 0):
+            return f"track cycles {out.track_cycles} in track state {out.track_state}, at most {most - 1} before"
         memory = bool(out.reasons & R_MEMORY)
-        if (memory and not tracked) or (out.track_state in _UNSEEN and not memory) \
-                or (memory and out.track_state not in _UNSEEN and not out.system_error):
+        if (memory and not remembered) or (out.track_state in _UNSEEN and not memory):
             return (f"reason memory {memory} in track state {out.track_state} (system error {out.system_error}), "
                     f"track {out.track_dm}, voted {out.distance_dm}")
         return ""

@@ -12,9 +12,9 @@ ROOT = Path(__file__).resolve().parents[2]             # the repository: mutant 
 CORE = ROOT / "monitor" / "core"
 EQUIVALENTS = ROOT / "verification" / "mutation_equivalents.toml"
 PY_FILES = ("voter.py", "freshness.py", "observation.py", "envelope.py", "memory.py", "cycle.py", "braking.py",
-            "config.py", "table.py", "types.py", "risk.py", "plausibility.py")
+            "config.py", "table.py", "types.py", "risk.py", "plausibility.py", "tracks.py")
 # the tests run against every Python mutant, fastest killers first (-x stops at the first failure)
-PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests/test_plausibility.py",
+PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests/test_tracks.py", "tests/test_plausibility.py",
             "tests/test_core_memory.py",
             "tests/test_core_cycle.py", "tests/test_supervision.py", "tests/test_core_tables.py", "tests/test_table.py",
             "tests/test_core_stateful.py", "tests/test_risk.py")     # risk.py's killer last: reached only by what the others let through

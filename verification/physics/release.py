@@ -36,9 +36,9 @@ from fractions import Fraction
 
 import z3
 
-from monitor.core import memory
+from monitor.core import memory, tracks
 from monitor.core.config import Config, track_accel_mms2
-from monitor.core.types import MAX_SPEED_CMS
+from monitor.core.types import MAX_SPEED_CMS, Track
 
 from . import symbolic
 from .model import MAX_UPHILL, Declaration, G, band_sums, pos, q
@@ -118,6 +118,68 @@ def near_travel_results(cfg: Config, d: Declaration, accel: int, timeout_ms: int
     return out
 
 
+def _symbolic_check(r: Result, fn, inputs: dict, domain: list, violated, named: dict, timeout_ms: int) -> Result:
+    """`r` proved if on no feasible path of the shipped `fn` (run symbolically) `violated(value)`
+    can hold together with the domain; else refuted with a model of its inputs, or unknown."""
+    t0 = time.perf_counter()
+    r.status = "proved"
+    for path in symbolic.explore(fn, inputs, domain, timeout_ms=EXPLORE_TIMEOUT_MS):
+        st, m = refute(z3.And(*domain, *path.condition, *path.side, violated(path.value)), timeout_ms)
+        if st != "proved":
+            r.status = st
+            if m is not None:
+                r.model = {k: value(m, t) for k, t in named.items()}
+            break
+    r.seconds = time.perf_counter() - t0
+    return r
+
+
+def tracks_results(timeout_ms: int = TIMEOUT_MS) -> list[Result]:
+    """(M) for every remembered obstacle through what the memory does to its tracks (issue 38
+    item 2), on the shipped code run symbolically: a sighting (`memory.observe`) never puts
+    a track beyond the sighting or beyond where the track already was, and never remembers a
+    slower obstacle than it saw (confirmed: the measured speed; otherwise not below what was
+    remembered either); two tracks merged when the memory is full (`tracks.merge`) are never
+    farther or slower than either, and are forgotten or passed only where the farther could
+    be. The sensors report their nearest object (the declaration), so the true gap x to a
+    remembered obstacle is at least the sighting d as well as its old position: x >= N after."""
+    out = []
+    near, far, closing, dist, own, x = z3.Reals("near far closing distance_dm obstacle_cms gap")
+    dom = [-1 <= near, near <= 600000000, near <= far, far <= 600000000, 0 <= closing, closing <= MAX_OWN_CMS,
+           0 <= dist, dist <= 60000, -30000 <= own, own <= 30000, z3.Or(near == -1, near >= 0)]
+    for confirmed, sighted, kind in ((True, True, "a confirmed sighting"), (False, True, "a module's sighting"),
+                                     (False, False, "a disputed sighting no module confirms")):
+        def seen(v, confirmed=confirmed):                 # (-1: no track, NO_TRACK)
+            n2, _, c2, _ = v
+            gap_ok = z3.Implies(z3.And(z3.Or(near == -1, x >= near), x >= dist * 10000), z3.Or(n2 == -1, x >= n2))
+            speed_ok = z3.Implies(n2 != -1, z3.And(c2 >= own, z3.Or(confirmed, near == -1, c2 >= closing)))
+            return z3.Not(z3.And(gap_ok, speed_ok))
+        r = Result(f"memory: observe (shipped, symbolic) after {kind} keeps every track at or before its obstacle "
+                   "and its speed at least the one seen (the sensors report their nearest object)", "release",
+                   "memory.observe")
+        out.append(_symbolic_check(
+            r, memory.observe,
+            {"near": near, "far": far, "closing": closing, "distance_dm": dist, "obstacle_cms": own, "age_now": 0,
+             "confirmed": confirmed, "sighted": sighted}, dom, seen,
+            {"near": near, "far": far, "closing": closing, "distance_dm": dist, "obstacle_cms": own, "gap": x},
+            timeout_ms))
+    an, af, ac, bn, bf, bc = z3.Reals("a_near a_far a_closing b_near b_far b_closing")
+    mdom = [0 <= an, an <= af, 0 <= bn, bn <= bf, 0 <= ac, 0 <= bc]
+
+    def merged(v):
+        n2, f2, c2 = v[0], v[1], v[2]
+        return z3.Or(n2 > an, n2 > bn, f2 < af, f2 < bf, c2 < ac, c2 < bc)
+
+    r = Result("memory: merge (shipped, symbolic) of two tracks when the memory is full is never farther, nearer in "
+               "its least position or slower than either", "release", "tracks.merge")
+    out.append(_symbolic_check(
+        r, lambda a_near, a_far, a_closing, b_near, b_far, b_closing: tracks.merge(
+            Track(a_near, a_far, a_closing, 0, 0, True), Track(b_near, b_far, b_closing, 0, 0, False)),
+        {"a_near": an, "a_far": af, "a_closing": ac, "b_near": bn, "b_far": bf, "b_closing": bc}, mdom, merged,
+        {"a_near": an, "a_far": af, "a_closing": ac, "b_near": bn, "b_far": bf, "b_closing": bc}, timeout_ms))
+    return out
+
+
 def cycle_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
     """(F) one free period on, per reported condition: an emergency demanded at the next
     cycle stops the train `standstill_margin` short of the remembered obstacle (the whole
@@ -159,5 +221,5 @@ def cycle_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
 def release_results(cfg: Config, d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
     accel = track_accel_mms2(cfg)
     return ([memory_step(d, Fraction(accel, 1000), timeout_ms)] + near_travel_results(cfg, d, accel, timeout_ms)
-            + cycle_results(d, timeout_ms))
+            + tracks_results(timeout_ms) + cycle_results(d, timeout_ms))
 

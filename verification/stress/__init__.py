@@ -44,7 +44,7 @@ from __future__ import annotations
 
 from .encounters import APPEAR_S, CHANNELS, GHOST_M, NOISE_SIGMA_M, RANGE_M, ENCOUNTERS, Encounter
 from .disturbances import (
-    BETA, BLIND_STAYS, DISTURBANCES, EXPLORE, KINDS, NOMINAL, P_BLIND, P_MISS, P_MODULE_MISS, SHAPES, WINDOW,
+    BETA, BLIND_STAYS, DISTURBANCES, EXPLORE, KINDS, NOMINAL, P_BLIND, P_MISS, P_MODULE_MISS, P_BEHIND, SHAPES, WINDOW,
     Disturbance, Proposal,
     log_weight,
 )
@@ -58,7 +58,7 @@ from .part import section
 
 __all__ = [
     "APPEAR_S", "CHANNELS", "GHOST_M", "NOISE_SIGMA_M", "RANGE_M", "ENCOUNTERS", "Encounter", "BETA", "BLIND_STAYS",
-    "DISTURBANCES", "EXPLORE", "KINDS", "NOMINAL", "P_BLIND", "P_MISS", "P_MODULE_MISS", "SHAPES", "WINDOW", "Disturbance", "Proposal",
+    "DISTURBANCES", "EXPLORE", "KINDS", "NOMINAL", "P_BLIND", "P_MISS", "P_MODULE_MISS", "P_BEHIND", "SHAPES", "WINDOW", "Disturbance", "Proposal",
     "log_weight", "closed_loop", "evaluate_all", "DEFENSIVE", "NO_FAILURE", "W_MAX", "effective_failures",
     "rare_events", "weighted_interval", "PRUNED", "QUICK", "Budget", "prune", "search", "replay_matches",
     "write_candump", "write_cosim_scenario", "render", "run", "summarise", "plot", "section",

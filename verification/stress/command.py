@@ -85,7 +85,7 @@ def summarise(events: list[dict]) -> str:
         parts.append("every channel blind " + ", ".join(runs) + " after the obstacle appeared")
     others = [e for e in events if e["kind"] != "blind"]
     if others:
-        parts.append(", ".join(f"{e['kind']} {e['channel']}" if e["kind"] == "module_miss" else
+        parts.append(", ".join(f"{e['kind']} {e['channel']}" if e["kind"] in ("module_miss", "object_behind") else
                                f"{e['kind']} ch{e['channel']} at {e['t_after_appearance_s']:.1f} s" for e in others[:8])
                      + (f" and {len(others) - 8} more" if len(others) > 8 else ""))
     return "; ".join(parts) or "no disturbance"

@@ -58,9 +58,10 @@ def _refit(proposal: Proposal, elites: list[Disturbance], cycles: np.ndarray, we
     # a module's miss (per encounter) refitted like the blindness's start: the share of the
     # weighted elites that have it
     module = blend(w @ np.stack([e.module for e in elites]).astype(float), proposal.module)
+    behind = blend(w @ np.stack([e.behind for e in elites]).astype(float), proposal.behind)   # (the same, per encounter)
     # the noise keeps its nominal spread and mean: it moves the voted distance by a few
     # sigmas (1 to 2 m) against margins of metres
-    return Proposal(p, proposal.mu, fit(blind, prev, proposal.stays), module)
+    return Proposal(p, proposal.mu, fit(blind, prev, proposal.stays), module, behind)
 
 
 def prune(model: str, enc: Encounter, d: Disturbance, world, cfg: Config, margin_m: float,

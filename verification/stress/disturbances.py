@@ -30,6 +30,13 @@ shorter range, another sensor kind, an object its kind does not detect), per enc
 module with P_MODULE_MISS. Sensors of different range and kind disagree normally; the rate
 is this model's assumption, not a measurement (seed 002 gives none): 1 % per module and
 encounter. It is the case the memory's "any module that saw it" rule exists for.
+
+A nearer hidden obstacle (issue 38 item 2): behind the obstacle, BEHIND_M farther, a second
+object stands in the sensors' sight (a vehicle, a buffer stop, a structure), per encounter
+with P_BEHIND (this model's assumption, 5 %). A channel that misses the obstacle in a cycle
+(blindness, its own miss, its module's miss) then sees past it and reports the farther
+object, as a sensor that reports its nearest object does, instead of nothing. The memory
+must count that as evidence that the obstacle is gone only as it counts ABSENT.
 """
 from __future__ import annotations
 
@@ -53,6 +60,7 @@ DISTURBANCES = {"blind": P_BLIND * (1 - BLIND_STAYS) / (1 - P_BLIND), "miss": (P
 EXPLORE = 0.05            # the search's first proposal: a common-cause blindness begins this likely
 MODULES = CHANNELS // 2
 P_MODULE_MISS = 0.01      # a module never sees this obstacle (per encounter and module; issue 38)
+P_BEHIND = 0.05           # a farther object behind the obstacle, seen where it is missed (per encounter; issue 38)
 
 
 KINDS = tuple(DISTURBANCES)
@@ -69,17 +77,21 @@ class Disturbance:
     ghost: np.ndarray
     z: np.ndarray             # (WINDOW, 6) distance noise in standard deviations
     module: np.ndarray = None  # (3,): module m never sees the obstacle (None: no module misses)
+    behind: np.ndarray = None  # (1,): a farther object stands behind it (None: none)
 
     def __post_init__(self):
         if self.module is None:
             self.module = np.zeros(MODULES, dtype=bool)
+        if self.behind is None:
+            self.behind = np.zeros(1, dtype=bool)
 
     @staticmethod
     def none() -> "Disturbance":
         return Disturbance(*(np.zeros(SHAPES[k], dtype=bool) for k in KINDS), np.zeros((WINDOW, CHANNELS)))
 
     def copy(self) -> "Disturbance":
-        return Disturbance(*(getattr(self, k).copy() for k in KINDS), self.z.copy(), self.module.copy())
+        return Disturbance(*(getattr(self, k).copy() for k in KINDS), self.z.copy(), self.module.copy(),
+                           self.behind.copy())
 
     def cut(self, cycles: int) -> "Disturbance":
         """Undisturbed from cycle `cycles` on (a run that read only `cycles` cycles of the
@@ -87,10 +99,10 @@ class Disturbance:
         out = self.copy()
         for k in (*KINDS, "z"):
             getattr(out, k)[cycles:] = 0
-        return out                    # (a module's miss holds from the start: every run read it)
+        return out                    # (a module's miss and the object behind hold from the start: every run read them)
 
     def count(self) -> int:
-        return int(sum(getattr(self, k).sum() for k in KINDS)) + int(self.module.sum())
+        return int(sum(getattr(self, k).sum() for k in KINDS)) + int(self.module.sum()) + int(self.behind.sum())
 
     def log_likelihood(self) -> float:
         """Nominal log-likelihood relative to the undisturbed sequence (no event, no noise)."""
@@ -104,6 +116,8 @@ class Disturbance:
         """The disturbances as a list (noise listed where it exceeds 2 sigma)."""
         out = [{"cycle": 0, "t_after_appearance_s": 0.0, "channel": f"module {m}", "kind": "module_miss"}
                for m in np.nonzero(self.module)[0]]
+        if self.behind[0]:
+            out.append({"cycle": 0, "t_after_appearance_s": 0.0, "channel": "all", "kind": "object_behind"})
         for j in range(WINDOW):
             if self.blind[j]:
                 out.append({"cycle": j, "t_after_appearance_s": j * period_ms / 1000.0, "channel": "all",
@@ -120,17 +134,18 @@ class Disturbance:
 
     def as_lists(self) -> dict:
         return {**{k: getattr(self, k).astype(int).tolist() for k in KINDS}, "z": np.round(self.z, 6).tolist(),
-                "module": self.module.astype(int).tolist()}
+                "module": self.module.astype(int).tolist(), "behind": self.behind.astype(int).tolist()}
 
     @staticmethod
     def from_lists(data: dict) -> "Disturbance":
         """From `as_lists`; a sequence shorter than WINDOW (written with a shorter window) is
-        undisturbed after its end; one written before module misses has none."""
+        undisturbed after its end; one written before module misses (or objects behind) has none."""
         arrays = [np.array(data[k], dtype=bool) for k in KINDS] + [np.array(data["z"], dtype=float)]
         if len(arrays[0]) > WINDOW:
             raise ValueError(f"a disturbance of {len(arrays[0])} cycles, longer than the window of {WINDOW}")
         return Disturbance(*(np.concatenate([a, np.zeros((WINDOW - len(a), *a.shape[1:]), a.dtype)]) for a in arrays),
-                           np.array(data.get("module", [0] * MODULES), dtype=bool))
+                           np.array(data.get("module", [0] * MODULES), dtype=bool),
+                           np.array(data.get("behind", [0]), dtype=bool))
 
 
 @dataclass
@@ -143,10 +158,13 @@ class Proposal:
     mu: np.ndarray            # (WINDOW, 6) noise means, in sigmas
     stays: np.ndarray         # (WINDOW,) probability that a blindness goes on into cycle j
     module: np.ndarray = None  # (3,) probability that module m never sees the obstacle
+    behind: np.ndarray = None  # (1,) probability of a farther object behind it
 
     def __post_init__(self):
         if self.module is None:
             self.module = np.full(MODULES, P_MODULE_MISS)
+        if self.behind is None:
+            self.behind = np.full(1, P_BEHIND)
 
     @staticmethod
     def nominal() -> "Proposal":
@@ -161,7 +179,7 @@ class Proposal:
         every channel at once) begins with EXPLORE in every cycle; the per-channel events
         start at their nominal rates (six independent misses in one cycle are 1e-8 likely)."""
         return Proposal({**self.p, "blind": np.maximum(self.p["blind"], EXPLORE)}, self.mu.copy(), self.stays.copy(),
-                        self.module.copy())
+                        self.module.copy(), self.behind.copy())
 
     def blind_chains(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """n runs of the blindness chain over the window, (n, WINDOW)."""
@@ -177,7 +195,8 @@ class Proposal:
         ev = [rng.random((n, *SHAPES[k])) < self.p[k] for k in KINDS[1:]]
         z = self.mu + rng.standard_normal((n, WINDOW, CHANNELS))
         module = rng.random((n, MODULES)) < self.module          # drawn last: the other draws are those of before
-        return [Disturbance(blind[i], *(e[i] for e in ev), z[i], module[i]) for i in range(n)]
+        behind = rng.random((n, 1)) < self.behind                # (and after those)
+        return [Disturbance(blind[i], *(e[i] for e in ev), z[i], module[i], behind[i]) for i in range(n)]
 
     def log_density(self, d: Disturbance, cycles: int = WINDOW) -> float:
         """log q(d), of its first `cycles` cycles (a run that read no more: the density of what
@@ -191,6 +210,7 @@ class Proposal:
         prev = np.r_[False, blind[:-1]]
         q = np.where(prev, self.stays[:cycles], self.p["blind"][:cycles])
         out += float(np.sum(np.where(d.module, np.log(self.module), np.log1p(-self.module))))
+        out += float(np.sum(np.where(d.behind, np.log(self.behind), np.log1p(-self.behind))))
         return out + float(np.sum(np.where(blind, np.log(q), np.log1p(-q))))
 
 

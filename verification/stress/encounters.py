@@ -14,6 +14,7 @@ CHANNELS = 6
 RANGE_M = 1000.0
 NOISE_SIGMA_M = 0.5
 GHOST_M = 200.0           # where a ghost is reported (beyond EBI: it can only add braking)
+BEHIND_M = 300.0          # an object behind the obstacle (disturbances.P_BEHIND) stands this much farther
 APPEAR_S = 2.0            # the obstacle appears this long after the train entered
 
 

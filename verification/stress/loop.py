@@ -15,7 +15,7 @@ from .. import world_train
 from ..campaign.tables import shipped_setup
 from ..scale import Cluster, map_ordered
 from .disturbances import WINDOW, Disturbance
-from .encounters import APPEAR_S, CHANNELS, ENCOUNTERS, GHOST_M, NOISE_SIGMA_M, RANGE_M, Encounter
+from .encounters import APPEAR_S, BEHIND_M, CHANNELS, ENCOUNTERS, GHOST_M, NOISE_SIGMA_M, RANGE_M, Encounter
 
 
 def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.WorldTrain,
@@ -58,6 +58,10 @@ def closed_loop(model: str, enc: Encounter, d: Disturbance, world: world_train.W
                 continue                                    # lost: the latched report ages
             if visible and not d.module[c // 2] and not (dist and (d.blind[j] or d.miss[j, c])):
                 x = gap + NOISE_SIGMA_M * (float(d.z[j, c]) if dist else 0.0)
+                latched[c] = Report(PRESENT, min(MAX_DISTANCE_DM, max(0, round(x * 10))),
+                                    max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round(seen_v * 100))), STATIC, tick)
+            elif visible and d.behind[0] and gap + BEHIND_M <= RANGE_M:   # missed: it sees past, to the object behind
+                x = gap + BEHIND_M + NOISE_SIGMA_M * (float(d.z[j, c]) if dist else 0.0)
                 latched[c] = Report(PRESENT, min(MAX_DISTANCE_DM, max(0, round(x * 10))),
                                     max(-MAX_CLOSING_CMS, min(MAX_CLOSING_CMS, round(seen_v * 100))), STATIC, tick)
             elif not visible and dist and d.ghost[j, c]:

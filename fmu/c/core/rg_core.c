@@ -278,13 +278,13 @@ void rg_initial_state(const rg_table *t, const rg_config *cfg, rg_state *s)
     s->error_cycles = 0;
     s->calm = 0;
     s->table_held = RG_MAINTAIN;
-    s->track_near = RG_NO_TRACK;
-    s->track_far = RG_NO_TRACK;
-    s->track_closing = 0;
-    s->track_cycles = 0;
-    s->track_absent = 0;
+    for (m = 0; m < RG_TRACKS; m++) {   /* every slot empty (types.NO_TRACKS) */
+        s->tracks[m].near = RG_NO_TRACK;
+        s->tracks[m].far = RG_NO_TRACK;
+        s->tracks[m].closing = s->tracks[m].cycles = 0;
+        s->tracks[m].absent = s->tracks[m].strong = 0;
+    }
     s->kept = 0;
-    s->track_strong = 0;
     for (m = 0; m < RG_MAX_CHANNELS; m++) rg_plausibility(&s->plaus[m], 0, 0, 0, 0, 0, 0, 1);
 }
 
@@ -1183,6 +1183,274 @@ static void zone_limits(const rg_config *cfg, int32_t speed, int32_t toward, int
     *alpha1 = c.ebi_dm > *alpha2 ? c.ebi_dm : *alpha2;
 }
 
+/* ---- several remembered obstacles (tracks.py): up to RG_TRACKS, nearest first, empty last -- */
+
+/* rg_ordered below orders RG_TRACKS = 3 slots with three exchanges (an insertion sort) */
+#if RG_TRACKS != 3
+#error "rg_ordered orders RG_TRACKS = 3 slots with three exchanges: give it an insertion sort's for the new count"
+#endif
+
+/* the order's key of an empty slot (tracks.ordered: empty slots after every held one) */
+#define RG_EMPTY_KEY ((int64_t)1 << 32)
+
+static const rg_track_slot RG_EMPTY_SLOT = {RG_NO_TRACK, RG_NO_TRACK, 0, 0, 0, 0};
+
+/*@ // tracks.relation: MEASURES 0, AHEAD 1, BEYOND 2 (rg_seen_beyond)
+    logic integer rg_relation_l(integer near, integer far, integer d, integer a) =
+        near != -1 && d * 10000 > far + 2 * a * 10000 ? 2 : (d * 10000 < near - 2 * a * 10000 ? 1 : 0);
+    // tracks.ordered's key: by position, empty slots (near == -1) after every held one
+    logic integer rg_key(integer near) = near == -1 ? 4294967296 : near;
+*/
+
+/* Where a voted obstacle at `distance_dm` lies against a remembered one (tracks.relation):
+ * beyond where it can be (seen beyond, as rg_seen_beyond says: evidence that it is gone),
+ * ahead of where it can be (near less the two reports' accuracy: another obstacle), or inside
+ * that window (the track measured again). rg_seen_beyond's test is written out here: a
+ * function with a contract is called either from rg_step or from the proved functions, never
+ * from both (WP proves the call preconditions in the functions it is given, so one also
+ * called from rg_step would keep a partial status), and rg_step calls rg_seen_beyond. */
+/*@ requires near >= -1 && far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+    assigns \nothing;
+    ensures \result == rg_relation_l(near, far, distance_dm, accuracy_dm);
+    ensures 0 <= \result <= 2;
+    ensures \result == 2 <==> (near != -1 && distance_dm * 10000 > far + 2 * accuracy_dm * 10000);
+    ensures \result == 1 ==> distance_dm * 10000 < near - 2 * accuracy_dm * 10000;
+    ensures \result == 0 && near != -1 ==>
+            near - 2 * accuracy_dm * 10000 <= distance_dm * 10000 <= far + 2 * accuracy_dm * 10000;
+*/
+int32_t rg_relation(int32_t near, int32_t far, int32_t distance_dm, int32_t accuracy_dm)
+{
+    if (near != RG_NO_TRACK
+        && (int64_t)distance_dm * RG_UNITS_PER_DM > (int64_t)far + 2 * (int64_t)accuracy_dm * RG_UNITS_PER_DM)
+        return RG_BEYOND;
+    if ((int64_t)distance_dm * RG_UNITS_PER_DM < (int64_t)near - 2 * (int64_t)accuracy_dm * RG_UNITS_PER_DM)
+        return RG_AHEAD;
+    return RG_MEASURES;
+}
+
+/* tracks.assign: the slot of the track a voted obstacle measures (-1: none) and, in
+ * `*create`, whether it is a new obstacle to remember. `creates`: the picture may create a
+ * track (confirmed, or some module sees it with both channels); one that may not only brings
+ * the nearest track nearer (rg_observe). `tracks` are ordered, nearest first. */
+/*@ requires \valid_read(tracks + (0 .. RG_TRACKS - 1)) && \valid(create);
+    requires \separated(create, tracks + (0 .. RG_TRACKS - 1));
+    requires \forall integer i; 0 <= i < RG_TRACKS ==> tracks[i].near >= -1 && tracks[i].far >= -1;
+    requires 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+    assigns *create;
+    ensures -1 <= \result < RG_TRACKS && (*create == 0 || *create == 1);
+    ensures !(\result >= 0 && *create != 0) && (creates != 0 || *create == 0);
+    ensures \result == -1 || tracks[\result].near != -1;
+    ensures creates == 0 || \result == -1
+            || rg_relation_l(tracks[\result].near, tracks[\result].far, distance_dm, accuracy_dm) == 0;
+    ensures creates != 0 || \result == (tracks[0].near != -1 ? 0 : -1);
+    ensures creates != 0 ==> (\result == -1 <==> *create == 1);
+    ensures creates != 0 && \result >= 0 ==> \forall integer j; 0 <= j < \result
+            ==> rg_relation_l(tracks[j].near, tracks[j].far, distance_dm, accuracy_dm) == 2;
+*/
+int32_t rg_assign(const rg_track_slot tracks[RG_TRACKS], int32_t distance_dm, int32_t accuracy_dm, int32_t creates,
+                  int32_t *create)
+{
+    int32_t i;
+    *create = 0;
+    if (!creates) return tracks[0].near != RG_NO_TRACK ? 0 : -1;
+    /*@ loop pragma UNROLL "completely", RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        int32_t r;
+        if (tracks[i].near == RG_NO_TRACK) break;
+        r = rg_relation(tracks[i].near, tracks[i].far, distance_dm, accuracy_dm);
+        if (r == RG_AHEAD) break;
+        if (r == RG_MEASURES) return i;
+    }
+    *create = 1;
+    return -1;
+}
+
+/* tracks.absorbed's test for the slot at `j`: a held track beyond the measured `slot` that a
+ * confirmed picture at `distance_dm` also measures (the same obstacle to within the sensors'
+ * accuracy, emptied into the one it measures). */
+/*@ requires \valid_read(track);
+    requires track->near >= -1 && track->far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+    assigns \nothing;
+    ensures \result == 0 || \result == 1;
+    ensures \result == 1 <==> (slot >= 0 && j > slot && track->near != -1
+                               && rg_relation_l(track->near, track->far, distance_dm, accuracy_dm) == 0);
+*/
+int32_t rg_absorbed(const rg_track_slot *track, int32_t slot, int32_t j, int32_t distance_dm, int32_t accuracy_dm)
+{
+    return slot >= 0 && j > slot && track->near != RG_NO_TRACK
+           && rg_relation(track->near, track->far, distance_dm, accuracy_dm) == RG_MEASURES;
+}
+
+/* tracks.merge: two remembered obstacles as one, to the safe side of both: the nearer worst
+ * case, the farther least position, the faster closing speed, strong if either is. (The
+ * third ensures is stronger than Python's: the faster of the two, not only at least both.) */
+/*@ requires \valid_read(a) && \valid_read(b) && \valid(out);
+    requires \separated(out, a) && \separated(out, b);
+    assigns *out;
+    ensures out->near == \min(a->near, b->near) && out->far == \max(a->far, b->far);
+    ensures out->closing >= a->closing && out->closing >= b->closing;
+    ensures out->closing == \max(a->closing, b->closing) && out->cycles == \min(a->cycles, b->cycles);
+    ensures (out->strong == 0 || out->strong == 1) && (out->strong != 0 <==> (a->strong != 0 || b->strong != 0));
+    ensures out->absent == 0;
+*/
+void rg_merge(const rg_track_slot *a, const rg_track_slot *b, rg_track_slot *out)
+{
+    out->near = a->near < b->near ? a->near : b->near;
+    out->far = a->far > b->far ? a->far : b->far;
+    out->closing = a->closing > b->closing ? a->closing : b->closing;
+    out->cycles = a->cycles < b->cycles ? a->cycles : b->cycles;
+    out->absent = 0;
+    out->strong = a->strong || b->strong;
+}
+
+/* One exchange of tracks.ordered's stable sort: the slots at i and i + 1 (with their ages and
+ * states) swapped if the second goes strictly before the first (nearer, or held before an
+ * empty one); equal keys keep their order. */
+/*@ requires 0 <= i <= RG_TRACKS - 1;
+    requires \valid(tracks + (i .. i + 1)) && \valid(ages + (i .. i + 1)) && \valid(states + (i .. i + 1));
+    requires \separated(tracks + (i .. i + 1), ages + (i .. i + 1), states + (i .. i + 1));
+    assigns tracks[i .. i + 1], ages[i .. i + 1], states[i .. i + 1];
+    ensures rg_key(tracks[i].near) <= rg_key(tracks[i + 1].near);
+    ensures rg_key(\old(tracks[i + 1].near)) < rg_key(\old(tracks[i].near)) ==>
+            tracks[i].near == \old(tracks[i + 1].near) && tracks[i + 1].near == \old(tracks[i].near);
+    ensures rg_key(\old(tracks[i + 1].near)) < rg_key(\old(tracks[i].near)) ==> tracks[i] == \old(tracks[i + 1]);
+    ensures rg_key(\old(tracks[i + 1].near)) < rg_key(\old(tracks[i].near)) ==> tracks[i + 1] == \old(tracks[i]);
+    ensures rg_key(\old(tracks[i + 1].near)) < rg_key(\old(tracks[i].near)) ==>
+            ages[i] == \old(ages[i + 1]) && ages[i + 1] == \old(ages[i])
+            && states[i] == \old(states[i + 1]) && states[i + 1] == \old(states[i]);
+    ensures rg_key(\old(tracks[i + 1].near)) >= rg_key(\old(tracks[i].near)) ==>
+            tracks[i] == \old(tracks[i]) && tracks[i + 1] == \old(tracks[i + 1])
+            && tracks[i].near == \old(tracks[i].near) && tracks[i + 1].near == \old(tracks[i + 1].near)
+            && ages[i] == \old(ages[i]) && ages[i + 1] == \old(ages[i + 1])
+            && states[i] == \old(states[i]) && states[i + 1] == \old(states[i + 1]);
+*/
+void rg_order_pair(rg_track_slot *tracks, int32_t *ages, int32_t *states, int32_t i)
+{
+    const int64_t here = tracks[i].near == RG_NO_TRACK ? RG_EMPTY_KEY : tracks[i].near;
+    const int64_t next = tracks[i + 1].near == RG_NO_TRACK ? RG_EMPTY_KEY : tracks[i + 1].near;
+    if (next < here) {
+        const rg_track_slot first = tracks[i], second = tracks[i + 1];
+        const int32_t first_age = ages[i], second_age = ages[i + 1];
+        const int32_t first_state = states[i], second_state = states[i + 1];
+        tracks[i] = second;
+        tracks[i + 1] = first;
+        ages[i] = second_age;
+        ages[i + 1] = first_age;
+        states[i] = second_state;
+        states[i + 1] = first_state;
+    }
+}
+
+/* tracks.ordered: the slots nearest first, empty ones last, equal positions in the order they
+ * had (a stable sort), each with its age and state: an insertion sort of the RG_TRACKS = 3
+ * slots by exchanges (rg_order_pair), so the slots are only ever swapped. */
+/*@ requires \valid(tracks + (0 .. RG_TRACKS - 1)) && \valid(ages + (0 .. RG_TRACKS - 1))
+             && \valid(states + (0 .. RG_TRACKS - 1));
+    requires \separated(tracks + (0 .. RG_TRACKS - 1), ages + (0 .. RG_TRACKS - 1), states + (0 .. RG_TRACKS - 1));
+    assigns tracks[0 .. RG_TRACKS - 1], ages[0 .. RG_TRACKS - 1], states[0 .. RG_TRACKS - 1];
+    ensures rg_key(tracks[0].near) <= rg_key(tracks[1].near) <= rg_key(tracks[2].near);
+*/
+void rg_ordered(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS])
+{
+    rg_order_pair(tracks, ages, states, 0);     /* the first two in order */
+    rg_order_pair(tracks, ages, states, 1);     /* the third in its place among them */
+    /*@ assert hint_last: rg_key(tracks[0].near) <= rg_key(tracks[2].near)
+                          && rg_key(tracks[1].near) <= rg_key(tracks[2].near); */
+    rg_order_pair(tracks, ages, states, 0);
+}
+
+/* The second half of tracks.insert, for a memory with every slot held: the held ones in
+ * order, then `fresh` in its place after them (after any as near: it comes last), and the two
+ * farthest merged into the last slot (rg_merge), with the nearer one's age, held (no slot is
+ * as it was seen). The nearest is never merged (RG_TRACKS >= 2). */
+/*@ requires \valid(tracks + (0 .. RG_TRACKS - 1)) && \valid(ages + (0 .. RG_TRACKS - 1))
+             && \valid(states + (0 .. RG_TRACKS - 1)) && \valid_read(fresh);
+    requires \separated(tracks + (0 .. RG_TRACKS - 1), ages + (0 .. RG_TRACKS - 1), states + (0 .. RG_TRACKS - 1),
+                        fresh);
+    assigns tracks[0 .. RG_TRACKS - 1], ages[0 .. RG_TRACKS - 1], states[0 .. RG_TRACKS - 1];
+    ensures states[RG_TRACKS - 1] == RG_TRACK_HELD;
+*/
+void rg_insert_full(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS],
+                    const rg_track_slot *fresh, int32_t age, int32_t state)
+{
+    rg_track_slot all[RG_TRACKS + 1];
+    int32_t all_ages[RG_TRACKS + 1], all_states[RG_TRACKS + 1];
+    int32_t i;
+    /* the held ones in order: rg_ordered's exchanges, written out here so that rg_ordered is
+     * called from rg_step alone (WP proves the call preconditions of the contracted functions
+     * it is given; a function also called from rg_step would keep a partial status) */
+    rg_order_pair(tracks, ages, states, 0);
+    rg_order_pair(tracks, ages, states, 1);
+    rg_order_pair(tracks, ages, states, 0);
+    /*@ loop pragma UNROLL "completely", RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        all[i] = tracks[i];
+        all_ages[i] = ages[i];
+        all_states[i] = states[i];
+    }
+    all[RG_TRACKS] = *fresh;
+    all_ages[RG_TRACKS] = age;
+    all_states[RG_TRACKS] = state;
+    /*@ loop pragma UNROLL "completely", RG_TRACKS + 1; */
+    for (i = RG_TRACKS - 1; i >= 0; i--) rg_order_pair(all, all_ages, all_states, i);
+    /*@ loop pragma UNROLL "completely", RG_TRACKS; */
+    for (i = 0; i < RG_TRACKS - 1; i++) {
+        tracks[i] = all[i];
+        ages[i] = all_ages[i];
+        states[i] = all_states[i];
+    }
+    rg_merge(&all[RG_TRACKS - 1], &all[RG_TRACKS], &tracks[RG_TRACKS - 1]);
+    ages[RG_TRACKS - 1] = all_ages[RG_TRACKS - 1];
+    states[RG_TRACKS - 1] = RG_TRACK_HELD;
+}
+
+/* tracks.insert: `fresh` (with its age and state) remembered in the first empty slot; with
+ * none empty, rg_insert_full. Returns the slot `fresh` went to, -1 if the memory was full. */
+/*@ requires \valid(tracks + (0 .. RG_TRACKS - 1)) && \valid(ages + (0 .. RG_TRACKS - 1))
+             && \valid(states + (0 .. RG_TRACKS - 1)) && \valid_read(fresh);
+    requires \separated(tracks + (0 .. RG_TRACKS - 1), ages + (0 .. RG_TRACKS - 1), states + (0 .. RG_TRACKS - 1),
+                        fresh);
+    assigns tracks[0 .. RG_TRACKS - 1], ages[0 .. RG_TRACKS - 1], states[0 .. RG_TRACKS - 1];
+    ensures -1 <= \result < RG_TRACKS;
+    ensures \result == -1 ==> \forall integer i; 0 <= i < RG_TRACKS ==> \old(tracks[i].near) != -1;
+    ensures \result >= 0 ==> tracks[\result] == \old(*fresh);
+*/
+int32_t rg_insert(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS],
+                  const rg_track_slot *fresh, int32_t age, int32_t state)
+{
+    const rg_track_slot slot = *fresh;
+    int32_t i;
+    /*@ loop pragma UNROLL "completely", RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        if (tracks[i].near == RG_NO_TRACK) {
+            ages[i] = age;
+            states[i] = state;
+            tracks[i] = slot;
+            return i;
+        }
+    }
+    rg_insert_full(tracks, ages, states, fresh, age, state);
+    return -1;
+}
+
+/* The demand and warning of one remembered obstacle on its own curves (rg_supervision_demand:
+ * the obstacle present, an emergency held as `held` says): what rg_step compares to choose the
+ * remembered obstacle that rg_decide supervises (the one that demands the most). */
+/*@ requires \valid_read(curve) && \valid(warn) && \separated(curve, warn);
+    assigns *warn;
+    ensures 0 <= \result <= 2 && (*warn == 0 || *warn == 1);
+    ensures track_dm <= curve->ebi_dm ==> \result == 2;
+    ensures track_dm <= curve->sbi_dm ==> \result >= 1;
+    ensures held == 2 && track_dm <= curve->sbi_dm ==> \result == 2;
+    ensures curve->ebi_dm <= curve->sbi_dm && track_dm > curve->sbi_dm ==> \result == 0;
+    ensures 0 <= curve->ebi_dm <= curve->sbi_dm <= curve->warning_dm ==> (*warn == 1 <==> track_dm <= curve->warning_dm);
+*/
+int32_t rg_remembered_demand(int32_t track_dm, const rg_curve_set *curve, int32_t held, int32_t *warn)
+{
+    return rg_supervision_demand(1, track_dm, curve->ebi_dm, curve->sbi_dm, curve->warning_dm, held == RG_EMERGENCY,
+                                 warn);
+}
+
 void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inputs *in, int64_t tick, rg_outputs *out)
 {
     const int32_t modules = cfg->modules == 1 ? 1 : 3;
@@ -1201,14 +1469,15 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, implausible = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, remembered, confirmed, sighted, strong, keep,
-            beyond;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, confirmed, sighted, keep;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
-    int32_t t_dm, t_state, t_cycles = 0, t_absent = 0;
+    int32_t t_dm, t_state, t_cycles, slot, create, evidence_absent, first_state, first_lost;
+    int32_t nearest, worst, worst_env, worst_warn, memory_reason;
     int32_t spd, near_dm, alpha1 = 1, alpha2 = 0, r1, r2, score;
     int32_t i, m;
-    rg_track trk;
+    rg_track_slot tracks[RG_TRACKS];
+    int32_t ages[RG_TRACKS], states[RG_TRACKS];
     rg_decision dec;
     rg_curve_set curve = {0, 0, 0, 0}, tcurve = {0, 0, 0, 0};
 
@@ -1216,11 +1485,18 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
      * ranges): SAFE_STOP, as Python's step does on an exception. (Written out here, not in
      * a helper, so that EVA narrows the fields' ranges after it.) */
     if (s->node < 0 || (uint32_t)s->node >= t->nodes || s->held < RG_MAINTAIN || s->held > RG_EMERGENCY
-        || s->table_held < RG_MAINTAIN || s->table_held > RG_EMERGENCY || s->track_near < RG_NO_TRACK
-        || s->track_near > RG_MAX_TRACK || s->track_far < RG_NO_TRACK || s->track_far > RG_MAX_TRACK
-        || s->track_closing < 0 || s->track_closing > RG_MAX_CLOSING_CMS) {
+        || s->table_held < RG_MAINTAIN || s->table_held > RG_EMERGENCY) {
         safe_stop_fallback(s, out);
         return;
+    }
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        if (s->tracks[i].near < RG_NO_TRACK || s->tracks[i].near > RG_MAX_TRACK || s->tracks[i].far < RG_NO_TRACK
+            || s->tracks[i].far > RG_MAX_TRACK || s->tracks[i].closing < 0
+            || s->tracks[i].closing > RG_MAX_CLOSING_CMS) {
+            safe_stop_fallback(s, out);
+            return;
+        }
     }
 
     /* 1. freshness and range per channel; 1b. plausibility: a PRESENT channel whose distance
@@ -1303,59 +1579,90 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     own_speed = (int32_t)((int64_t)speed * (1000 - err) / 1000);   /* the train's share of a closing speed */
     present = distance != RG_NO_DISTANCE;
     toward = have_closing ? closing : speed;
-    trk.near = s->track_near;
-    trk.far = s->track_far;
-    trk.closing_cms = s->track_closing;
-    trk.age_ms = 0;          /* a remembered position's age was counted when it was moved */
     confirmed = present && sys_status == RG_PRESENT && !sys_error;
-    /* modules that see it with both channels: one creates the track, two (or a confirmed
+    /* modules that see it with both channels: one creates a track, two (or a confirmed
      * picture) make it strong, remembered for forget_ms; one module's alone for forget_single_ms */
     sighted = 0;
     for (m = 0; m < modules; m++)
         if (statuses[2 * m] == RG_PRESENT && statuses[2 * m + 1] == RG_PRESENT) sighted++;
-    strong = s->track_strong;                      /* (only ever set with a track) */
-    /* a confirmed sighting farther than the remembered obstacle can be, beyond the two reports'
-     * declared accuracy: the sensors report their nearest object, so it is evidence that the
-     * remembered one is gone, confirmed as ABSENT is (rg_forget), never an instant replacement */
-    beyond = confirmed && rg_seen_beyond(trk.near, trk.far, distance, cfg->distance_accuracy_dm);
-    if (present && !beyond) {
-        rg_observe(&trk, distance, toward - own_speed, age, confirmed, sighted > 0);
-        strong = strong || confirmed || sighted >= 2;  /* (a sighting that creates nothing is neither) */
-        if (trk.near == RG_NO_TRACK) {
-            t_state = RG_TRACK_NONE;
-        } else if (trk.near == (int64_t)distance * 10000) {
-            t_state = RG_TRACK_SEEN;
-        } else {                            /* a farther disputed sighting: the track was not seen */
-            t_state = RG_TRACK_HELD;
-            t_cycles = inc(s->track_cycles);
-        }
-    } else if (trk.near != RG_NO_TRACK) {   /* the track not seen: evidence, or held */
-        const int64_t far = (int64_t)trk.far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
-        const int32_t evidence = (beyond || (sys_status == RG_ABSENT && !sys_error)) && !stale;
-        t_absent = rg_forget(s->track_absent, evidence, far, cfg->sensor_range_dm,
-                             strong ? forget_cycles : forget_single, &t_state);
-        if (t_state == RG_TRACK_FORGOTTEN || t_state == RG_TRACK_PASSED) {
-            strong = 0;
-            trk.near = RG_NO_TRACK;
-            trk.far = RG_NO_TRACK;
-            trk.closing_cms = 0;
-            trk.age_ms = 0;
-            if (beyond) {                   /* gone: the farther sighting is the track now (the */
-                rg_observe(&trk, distance, toward - own_speed, age, confirmed, confirmed);
-                strong = confirmed;         /* state says what happened to the old one) */
-            }
-        } else {
-            trk.far = (int32_t)far;
-            t_cycles = inc(s->track_cycles);
-        }
-    } else {
-        t_state = RG_TRACK_NONE;
+    /* several obstacles (rg_assign and the rest, tracks.py): the sighting measures the nearest
+     * track whose window holds it, creates one ahead of or beyond them all; a confirmed sighting
+     * beyond a track is evidence that it is gone (the sensors report their nearest object),
+     * counted as ABSENT is (rg_forget), never an instant replacement */
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        tracks[i] = s->tracks[i];
+        ages[i] = 0;          /* a remembered position's age was counted when it was moved */
+        states[i] = RG_TRACK_NONE;
     }
-    t_dm = rg_track_dm(trk.near);
+    slot = -1;
+    create = 0;
+    if (present) slot = rg_assign(tracks, distance, cfg->distance_accuracy_dm, confirmed || sighted > 0, &create);
+    evidence_absent = sys_status == RG_ABSENT && !sys_error;
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        rg_track_slot *k = &tracks[i];
+        if (k->near == RG_NO_TRACK) continue;
+        if (i == slot) {                    /* the track measured (rg_observe) */
+            rg_track trk;
+            int32_t seen_now;
+            trk.near = k->near;
+            trk.far = k->far;
+            trk.closing_cms = k->closing;
+            trk.age_ms = 0;
+            rg_observe(&trk, distance, toward - own_speed, age, confirmed, sighted > 0);
+            seen_now = trk.near == (int64_t)distance * RG_UNITS_PER_DM;
+            ages[i] = trk.age_ms;
+            states[i] = seen_now ? RG_TRACK_SEEN : RG_TRACK_HELD;   /* (a farther disputed sighting: not seen) */
+            k->near = trk.near;
+            k->far = trk.far;
+            k->closing = trk.closing_cms;
+            k->cycles = seen_now ? 0 : inc(k->cycles);
+            k->absent = 0;
+            k->strong = k->strong || confirmed || sighted >= 2;
+        } else if (confirmed && slot >= 0 && rg_absorbed(k, slot, i, distance, cfg->distance_accuracy_dm)) {
+            if (k->closing > tracks[slot].closing) tracks[slot].closing = k->closing;   /* its speed kept there */
+            *k = RG_EMPTY_SLOT;             /* the same obstacle as the one measured */
+        } else {                            /* not seen: evidence, or held */
+            const int64_t far = (int64_t)k->far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
+            const int32_t beyond = confirmed && rg_seen_beyond(k->near, k->far, distance, cfg->distance_accuracy_dm);
+            const int32_t absent = rg_forget(k->absent, (beyond || evidence_absent) && !stale, far, cfg->sensor_range_dm,
+                                             k->strong ? forget_cycles : forget_single, &states[i]);
+            if (states[i] == RG_TRACK_FORGOTTEN || states[i] == RG_TRACK_PASSED) {
+                *k = RG_EMPTY_SLOT;
+            } else {
+                k->far = (int32_t)far;
+                k->cycles = inc(k->cycles);
+                k->absent = absent;
+            }
+        }
+    }
+    first_state = states[0];                /* what happened to the nearest */
+    first_lost = first_state == RG_TRACK_FORGOTTEN || first_state == RG_TRACK_PASSED;
+    if (create) {                           /* a new obstacle: remembered, or merged (rg_insert) */
+        rg_track trk;
+        rg_track_slot fresh;
+        trk.near = RG_NO_TRACK;
+        trk.far = RG_NO_TRACK;
+        trk.closing_cms = 0;
+        trk.age_ms = 0;
+        rg_observe(&trk, distance, toward - own_speed, age, confirmed, 1);
+        fresh.near = trk.near;
+        fresh.far = trk.far;
+        fresh.closing = trk.closing_cms;
+        fresh.cycles = 0;
+        fresh.absent = 0;
+        fresh.strong = confirmed || sighted >= 2;
+        (void)rg_insert(tracks, ages, states, &fresh, trk.age_ms, RG_TRACK_SEEN);
+    }
+    rg_ordered(tracks, ages, states);
+    t_dm = rg_track_dm(tracks[0].near);
+    t_state = first_lost ? first_state : (tracks[0].near != RG_NO_TRACK ? states[0] : RG_TRACK_NONE);
+    t_cycles = first_lost ? 0 : tracks[0].cycles;
 
-    /* 5. braking curves at the measured speed for the voted obstacle and for the remembered
-     *    one (unless a confirmed picture just replaced it), under the reported conditions;
-     *    the higher demand counts (rg_decide); the table's zones under normal ones; the
+    /* 5. braking curves at the measured speed for the voted obstacle and for every remembered
+     *    one (unless it is the confirmed picture itself), under the reported conditions; the
+     *    highest demand counts (rg_decide); the table's zones under normal ones; the
      *    observation reads the voted picture alone */
     if (present) {
         rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
@@ -1364,10 +1671,32 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     } else {
         z = sys_status == RG_DEGRADED ? 3 : 0;
     }
-    remembered = trk.near != RG_NO_TRACK && !(confirmed && trk.near == (int64_t)distance * 10000);
-    if (remembered) {
-        rg_curves(cfg, speed, track, brake, trk.closing_cms + own_speed, trk.age_ms, 0, RG_SUPERVISED_PERIODS,
-                  &tcurve);
+    /* every remembered obstacle on its own curves (its closing speed and the age of a sighting
+     * it took this cycle); rg_decide supervises the one that demands the most (the highest
+     * demand, then a warning: rg_supervision_demand warns whenever it demands, so that one's
+     * demand and warning are the highest and any of them all). The nearest of them is what
+     * the risk reads, and one that no channel shows this cycle is the memory's reason. */
+    nearest = -1;
+    worst = -1;
+    worst_env = RG_MAINTAIN;
+    worst_warn = 0;
+    memory_reason = 0;
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        rg_curve_set c;
+        int32_t env_i, warn_i;
+        if (tracks[i].near == RG_NO_TRACK || (confirmed && tracks[i].near == (int64_t)distance * RG_UNITS_PER_DM))
+            continue;
+        rg_curves(cfg, speed, track, brake, tracks[i].closing + own_speed, ages[i], 0, RG_SUPERVISED_PERIODS, &c);
+        env_i = rg_remembered_demand(rg_track_dm(tracks[i].near), &c, s->held, &warn_i);
+        if (worst < 0 || env_i > worst_env || (env_i == worst_env && warn_i > worst_warn)) {
+            worst = i;
+            worst_env = env_i;
+            worst_warn = warn_i;
+            tcurve = c;
+        }
+        if (nearest < 0) nearest = i;
+        if (states[i] != RG_TRACK_SEEN) memory_reason = 1;
     }
     spd = speed_class(toward, cfg->fast_closing_cms);
     obs = t->model == RG_MODEL_M1 ? z : (((z * 3 + spd) * 3 + obstacle) * 2 + track) * 2 + brake;
@@ -1375,9 +1704,9 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     /* the papers' risk at the nearest obstacle, voted or remembered; a blind picture with
      * nothing remembered reads as an obstacle at 0 m, as the observation reads it critical */
     near_dm = distance;
-    if (remembered && (distance == RG_NO_DISTANCE || t_dm < distance)) {
-        near_dm = t_dm;
-        zone_limits(cfg, speed, trk.closing_cms + own_speed, trk.age_ms, &alpha1, &alpha2);
+    if (nearest >= 0 && (distance == RG_NO_DISTANCE || rg_track_dm(tracks[nearest].near) < distance)) {
+        near_dm = rg_track_dm(tracks[nearest].near);
+        zone_limits(cfg, speed, tracks[nearest].closing + own_speed, ages[nearest], &alpha1, &alpha2);
     } else if (distance == RG_NO_DISTANCE && sys_status == RG_DEGRADED) {
         near_dm = 0;
         zone_limits(cfg, speed, speed, 0, &alpha1, &alpha2);
@@ -1428,7 +1757,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     /* envelope.keep_held: an obstacle in sight and closing in, in the table's zones when the
      * keeping began, keeps what is held (until out of sight, opening, or standstill) */
     keep = present && toward > 0 && (z != 0 || s->kept != 0);
-    held = rg_decide(distance, &curve, remembered, t_dm, &tcurve, table_demand, error_demand, s->held, s->calm, speed,
+    held = rg_decide(distance, &curve, worst >= 0, worst >= 0 ? rg_track_dm(tracks[worst].near) : RG_NO_DISTANCE,
+                     &tcurve, table_demand, error_demand, s->held, s->calm, speed,
                      cfg->emergency_release == RG_RELEASE_REVOCABLE, cfg->release_confirm_cycles,
                      keep, &dec);
     env = dec.env;
@@ -1440,7 +1770,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     if (env == RG_EMERGENCY) reasons |= RG_R_ENVELOPE;
     else if (env == RG_SERVICE) reasons |= RG_R_SBI;
     if (stale) reasons |= RG_R_STALE;
-    if (remembered && t_state != RG_TRACK_SEEN) reasons |= RG_R_MEMORY;
+    if (memory_reason) reasons |= RG_R_MEMORY;
     if (implausible) reasons |= RG_R_IMPLAUSIBLE;
     if (error) {
         reasons |= RG_R_SYSTEM_ERROR | (train_ok ? 0 : RG_R_TRAIN_INPUT);
@@ -1458,14 +1788,18 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     }
     if (warn) reasons |= RG_R_WARNING;
 
-    /* the remembered obstacle moved for the next period, worst case for the train; after a
+    /* every remembered obstacle moved for the next period, worst case for the train; after a
        sighting also for the report's age (the remembered curves count no age: it is counted
-       once, at the speed of the cycle that saw it) */
-    if (trk.near != RG_NO_TRACK) {
-        const int64_t near = (int64_t)trk.near - rg_near_travel(speed, err, track_accel, trk.closing_cms,
-                                                                 (int64_t)cfg->period_ms + trk.age_ms);
-        trk.near = near > 0 ? (int32_t)near : 0;
+       once, at the speed of the cycle that saw it); then in order again */
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        if (tracks[i].near != RG_NO_TRACK) {
+            const int64_t near = (int64_t)tracks[i].near - rg_near_travel(speed, err, track_accel, tracks[i].closing,
+                                                                          (int64_t)cfg->period_ms + ages[i]);
+            tracks[i].near = near > 0 ? (int32_t)near : 0;
+        }
     }
+    rg_ordered(tracks, ages, states);
 
     error_cycles = (error || stale) ? inc(s->error_cycles) : s->error_cycles;
     s->mode = mode;
@@ -1481,13 +1815,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->error_cycles = error_cycles;
     s->calm = calm;
     s->table_held = mode != RG_INIT ? table_demand : RG_MAINTAIN;
-    s->track_near = trk.near;
-    s->track_far = trk.far;
-    s->track_closing = trk.closing_cms;
-    s->track_cycles = t_cycles;
-    s->track_absent = t_absent;
+    for (i = 0; i < RG_TRACKS; i++) s->tracks[i] = tracks[i];
     s->kept = keep && speed > 0 && held > RG_MAINTAIN;
-    s->track_strong = strong;
 
     out->demand = final_demand;
     out->reasons = reasons;

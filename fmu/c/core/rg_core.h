@@ -60,6 +60,11 @@
 #define RG_NO_TRACK (-1)          /* no remembered obstacle */
 #define RG_UNITS_PER_DM 10000     /* track positions in 1e-5 m (cm/s x ms) */
 #define RG_MAX_TRACK (RG_MAX_DISTANCE_DM * RG_UNITS_PER_DM)   /* 6e8: fits int32 */
+#define RG_TRACKS 3               /* remembered obstacles kept at once (monitor/core/tracks.py, TRACKS) */
+/* where a voted obstacle lies against a remembered one (tracks.relation) */
+#define RG_MEASURES 0             /* inside its window: the track measured again */
+#define RG_AHEAD 1                /* nearer than it can be: another obstacle */
+#define RG_BEYOND 2               /* farther than it can be (rg_seen_beyond): evidence that it is gone */
 
 /* documented input ranges */
 #define RG_MAX_DISTANCE_DM 60000
@@ -175,6 +180,16 @@ typedef struct {
     int32_t period_ms;    /* the time step the table was solved for */
 } rg_table;
 
+/* One remembered obstacle (monitor/core/types.py's Track), positions in 1e-5 m (cm/s x ms). */
+typedef struct {
+    int32_t near;         /* worst case (nearest); RG_NO_TRACK: the slot is empty */
+    int32_t far;          /* the remembered position less the train's least travel (< 0: passed) */
+    int32_t closing;      /* its own speed towards the train, cm/s (>= 0) */
+    int32_t cycles;       /* cycles since it was last voted */
+    int32_t absent;       /* cycles in a row of positive evidence that it is gone */
+    int32_t strong;       /* confirmed or seen by two modules at once: forget_ms, not forget_single_ms */
+} rg_track_slot;
+
 typedef struct {
     int32_t mode;
     int32_t node;
@@ -187,17 +202,13 @@ typedef struct {
     int32_t calm;         /* cycles in a row in which the held demand could have been lowered */
     int32_t agree[RG_MAX_MODULES];     /* cycles in a row without disagreement (clear `disagree`) */
     int32_t table_held;   /* the table's demand, held while its obstacle is in the table's zones */
-    int32_t track_near;   /* remembered obstacle, worst case (nearest), 1e-5 m; RG_NO_TRACK if none */
-    int32_t track_far;    /* the remembered position less the train's least travel */
-    int32_t track_closing;  /* the remembered obstacle's own speed towards the train, cm/s (>= 0) */
-    int32_t track_cycles;   /* cycles since the obstacle was last voted */
-    int32_t track_absent;   /* cycles in a row of positive evidence that it is gone */
+    rg_track_slot tracks[RG_TRACKS];  /* the remembered obstacles: nearest first, empty slots last */
     int32_t kept;           /* an obstacle in sight and closing keeps what is held (keep_held) */
-    int32_t track_strong;   /* confirmed or seen by two modules at once: forget_ms, not forget_single_ms */
     rg_plaus plaus[RG_MAX_CHANNELS];  /* per channel: plausibility of its reports over time */
 } rg_state;
 
-/* The remembered obstacle as rg_observe updates it (the track_* fields of rg_state). */
+/* A remembered obstacle as rg_observe updates it (from a slot of rg_state.tracks), with the
+ * age of the report its position came from this cycle. */
 typedef struct {
     int32_t near;
     int32_t far;
@@ -341,5 +352,28 @@ int32_t rg_forget(int32_t cycles_absent, int32_t evidence, int64_t far, int32_t 
                   int32_t *state);
 int32_t rg_track_dm(int32_t near);
 int32_t rg_forget_cycles(const rg_config *cfg, int32_t single);
+
+/* Several remembered obstacles (monitor/core/tracks.py), each mirroring the Python function
+ * of the same name: rg_relation; rg_assign returns the slot and writes `create`; rg_absorbed
+ * is absorbed's test for one slot `j` (whether j is among the slots it returns); rg_merge
+ * writes the merged slot to `*out`; rg_ordered orders the RG_TRACKS slots in place, carrying
+ * each slot's age and state along, by exchanges (rg_order_pair: one exchange of its stable
+ * insertion sort); rg_insert updates the arrays in place and returns the slot `fresh` went
+ * to (-1: none was empty, so the two farthest of the held ones and `fresh` merged into the
+ * last slot: rg_insert_full, insert's second half). */
+int32_t rg_relation(int32_t near, int32_t far, int32_t distance_dm, int32_t accuracy_dm);
+int32_t rg_assign(const rg_track_slot tracks[RG_TRACKS], int32_t distance_dm, int32_t accuracy_dm, int32_t creates,
+                  int32_t *create);
+int32_t rg_absorbed(const rg_track_slot *track, int32_t slot, int32_t j, int32_t distance_dm, int32_t accuracy_dm);
+void rg_merge(const rg_track_slot *a, const rg_track_slot *b, rg_track_slot *out);
+void rg_order_pair(rg_track_slot *tracks, int32_t *ages, int32_t *states, int32_t i);
+void rg_ordered(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS]);
+void rg_insert_full(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS],
+                    const rg_track_slot *fresh, int32_t age, int32_t state);
+int32_t rg_insert(rg_track_slot tracks[RG_TRACKS], int32_t ages[RG_TRACKS], int32_t states[RG_TRACKS],
+                  const rg_track_slot *fresh, int32_t age, int32_t state);
+/* One remembered obstacle's demand on its own curves (rg_supervision_demand), its warning in
+ * `*warn`: rg_step supervises, through rg_decide, the remembered obstacle that demands most. */
+int32_t rg_remembered_demand(int32_t track_dm, const rg_curve_set *curve, int32_t held, int32_t *warn);
 
 #endif
