@@ -27,7 +27,7 @@ from .types import (
     ABSENT, DEGRADED, DEGRADED_MODE, EMERGENCY, INIT, MAINTAIN, MAX_COUNT, MAX_SPEED_CMS, NO_DISTANCE, NO_TRACK,
     NORMAL, PRESENT, R_DEADLINE, R_ENVELOPE, R_IMPLAUSIBLE, R_INIT, R_LATCH, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_STALE,
     R_DISPUTE, R_SBI, R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT, R_WARNING, SAFE_STOP, SERVICE, STATIC,
-    NO_TRACKS, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, TRACKS, Inputs, Outputs, State,
+    TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, TRACKS, Inputs, Outputs, State,
     Track,
 )
 from .voter import disagreement, distances_disagree, vote_2oo2, vote_3oo3, vote_single
@@ -75,7 +75,7 @@ def create(cfg: Config, table_bytes: bytes, expect_model: str | None = None) -> 
 def initial_state(setup: Setup) -> State:
     modules = (0,) * setup.config.modules
     return State(INIT, setup.table.start, MAINTAIN, 0, modules, 0, 0, 0, 0, modules,
-                 tracks=NO_TRACKS, plaus=(NO_REFERENCE,) * setup.config.channels)
+                 plaus=(NO_REFERENCE,) * setup.config.channels)
 
 
 def _train(train) -> tuple[int, int, int, bool]:
@@ -194,7 +194,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     # holds it, creates one ahead of or beyond them all; a confirmed sighting beyond a track
     # is evidence that it is gone (the sensors report their nearest object), counted as
     # ABSENT is (forget), never an instant replacement
-    tracks = list(state.tracks) if len(state.tracks) == TRACKS else list(NO_TRACKS)
+    tracks = list(state.tracks)               # (every State holds TRACKS slots: NO_TRACKS by default)
     ages, states = [0] * TRACKS, [TRACK_NONE] * TRACKS
     slot, create, gone = -1, False, ()
     if distance != NO_DISTANCE:

@@ -109,7 +109,7 @@ class State(NamedTuple):
     calm: int = 0        # cycles in a row in which the held demand could have been lowered
     agree: tuple = (0, 0, 0)  # per module: consecutive cycles without disagreement (clears `disagree`)
     table_held: int = 0  # the table's demand held while its obstacle is in the table's zones
-    tracks: tuple = ()           # the remembered obstacles (tracks.py): TRACKS slots, nearest first, empty last
+    tracks: tuple = NO_TRACKS    # the remembered obstacles (tracks.py): TRACKS slots, nearest first, empty last
     kept: bool = False           # an obstacle in sight and closing keeps what is held (envelope.keep_held)
     plaus: tuple = ()            # per channel: plausibility.check's state (NO_REFERENCE while not PRESENT)
 

@@ -126,28 +126,22 @@ def main(argv=None) -> int:
         ap.error("--runs must be at least 1")
     if args.case == "behind":
         rows = estimate_behind(args.table, args.encounter, args.runs, args.seed)
-        if args.json:
-            print(json.dumps({"rows": rows}))
-        else:
-            for r in rows:
-                print(f"{'object behind' if r['object_behind'] else 'none behind':>16}: {r['failures']} of {r['runs']} "
-                      f"sampled encounters fail; P(collision per encounter) = {r['p_given']:.2e} "
-                      f"(95 % {r['ci95'][0]:.2e}..{r['ci95'][1]:.2e}, {r['effective_failures']:.1f} effective failures)")
-            print(f"outcomes the object behind changes: {rows[0]['changed_by_the_object']} of {args.runs}")
-            extra = (rows[0]["p_given"] - rows[1]["p_given"]) * P_BEHIND
-            print(f"share of P(collision per encounter): ({rows[0]['p_given']:.2e} - {rows[1]['p_given']:.2e}) x "
-                  f"P_BEHIND {P_BEHIND} = {extra:.1e}")
-        return 0
-    rows = [estimate(args.table, args.encounter, args.runs, args.seed, m) for m in MEMORIES]
-    if args.json:
-        print(json.dumps({"rows": rows}))
+        extra = (rows[0]["p_given"] - rows[1]["p_given"]) * P_BEHIND
+        lines = [f"{'object behind' if r['object_behind'] else 'none behind':>16}: {r['failures']} of {r['runs']} "
+                 f"sampled encounters fail; P(collision per encounter) = {r['p_given']:.2e} "
+                 f"(95 % {r['ci95'][0]:.2e}..{r['ci95'][1]:.2e}, {r['effective_failures']:.1f} effective failures)"
+                 for r in rows]
+        lines += [f"outcomes the object behind changes: {rows[0]['changed_by_the_object']} of {args.runs}",
+                  f"share of P(collision per encounter): ({rows[0]['p_given']:.2e} - {rows[1]['p_given']:.2e}) x "
+                  f"P_BEHIND {P_BEHIND} = {extra:.1e}"]
     else:
-        for r in rows:
-            print(f"{r['memory']:>16}: {r['failures']} of {r['runs']} encounters fail = {r['p_given_module_miss']:.2e} "
-                  f"(95 % {r['ci95'][0]:.2e}..{r['ci95'][1]:.2e}) given a module's miss; times "
-                  f"P(some module misses) {r['p_some_module_misses']:.4f} = {r['share_of_p_collision']:.2e} per encounter")
+        rows = [estimate(args.table, args.encounter, args.runs, args.seed, m) for m in MEMORIES]
+        lines = [f"{r['memory']:>16}: {r['failures']} of {r['runs']} encounters fail = {r['p_given_module_miss']:.2e} "
+                 f"(95 % {r['ci95'][0]:.2e}..{r['ci95'][1]:.2e}) given a module's miss; times "
+                 f"P(some module misses) {r['p_some_module_misses']:.4f} = {r['share_of_p_collision']:.2e} per encounter"
+                 for r in rows]
+    print(json.dumps({"rows": rows}) if args.json else "\n".join(lines))
     return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())
