@@ -33,6 +33,7 @@ from monitor.core.types import (
 )
 from monitor.tables import read
 from verification import fastcore as fc
+from verification import fasttracks as ft
 
 STEPS = 40
 
@@ -568,7 +569,8 @@ def test_twin_curves_equal_the_core_curves():
 
 
 def _mutant_caught(monkeypatch, name: str, wrapper, case: Case = CASES[0], trains: int = 300) -> bool:
-    monkeypatch.setattr(fc, name, wrapper(getattr(fc, name)))
+    module = fc if hasattr(fc, name) else ft            # the cycle's pieces, or the memory's
+    monkeypatch.setattr(module, name, wrapper(getattr(module, name)))
     setup = _setup(case)
     inputs = several_inputs if case.obstacles else random_inputs
     trace = fc.twin_trace(setup, inputs(case, trains, case.steps, seed=5))

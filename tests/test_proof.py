@@ -10,6 +10,7 @@ z3 cvc4), so a missing tool is a failure, as it is in `railguard verify`.
 from __future__ import annotations
 
 import re
+from typing import NamedTuple
 
 import pytest
 
@@ -20,8 +21,15 @@ SOURCE = (proof.CORE_DIR / "rg_core.c").read_text()
 
 
 @pytest.fixture(scope="module")
-def result():
-    r = proof.run()
+def cache(tmp_path_factory):
+    """WP's cache for this module's runs, empty at the start: the real sources are proved
+    afresh, and each planted bug's run sends only the goals it changed to the provers."""
+    return tmp_path_factory.mktemp("wp-cache")
+
+
+@pytest.fixture(scope="module")
+def result(cache):
+    r = proof.run(cache_dir=cache)
     assert not r["missing"], f"{r.get('error')}: the proof needs Frama-C ({proof.INSTALL_HINT})"
     return r
 
@@ -69,101 +77,126 @@ def test_section_and_checks(result):
 
 # ---------------------------------------------------------------- (b) planted bugs
 
-def test_planted_bug_2oo2_distance_max_fails_the_proof():
-    """The 2oo2 voter takes the longer of two PRESENT distances: CI must fail."""
-    bug = SOURCE.replace("*distance = da < db ? da : db;", "*distance = da > db ? da : db;")
-    assert bug != SOURCE
-    # the voters and the memory's observation besides the planted one (the whole core's WP
-    # runs in test_all_wp_goals_proved): only the 2oo2 voter's goals may fail
-    r = proof.run_modified(bug, functions=("rg_vote_2oo2", "rg_disagreement", "rg_vote_3oo3", "rg_observe"))
-    wp = r["wp"]
-    assert not r["ok"] and not wp["ok"]
-    assert wp["proved"] < wp["summary_total"]
-    assert wp["failed"], wp
-    assert all(g.startswith("typed_rg_vote_2oo2_ensures") for g in wp["failed"]), wp["failed"]
+class Bug(NamedTuple):
+    old: str                      # the text replaced (once) in rg_core.c
+    new: str
+    prove: tuple[str, ...]        # the functions WP proves for this bug
+    fail: tuple[str, ...]         # of those, the ones whose goals must fail, each of them
+    goal: str                     # a prefix one of the failed goals must have
+    every: bool = False           # ... that every failed goal must have
+
+
+# WP is modular (a caller is proved against its callees' contracts, never their bodies), so
+# bugs whose proved functions are disjoint are planted together and proved in one run: each
+# is judged on the goals of its own functions, as if it were planted alone
+BUGS = {
+    # the 2oo2 voter takes the longer of two PRESENT distances: only its goals may fail, the
+    # disagreement beside it still proves
+    "2oo2 distance max": Bug("*distance = da < db ? da : db;", "*distance = da > db ? da : db;",
+                             ("rg_vote_2oo2", "rg_disagreement"), ("rg_vote_2oo2",),
+                             "typed_rg_vote_2oo2_ensures", True),
+    # the 3oo3 voter forgets that modules 2 and 3 may disagree
+    "3oo3 missing error term": Bug("s[0] != s[1] || s[1] != s[2] || st == RG_DEGRADED",
+                                   "s[0] != s[1] || st == RG_DEGRADED", ("rg_vote_3oo3",), ("rg_vote_3oo3",),
+                                   "typed_rg_vote_3oo3_ensures", True),
+    # the run distance rounded up with a constant one short (the curve one dm short whenever the
+    # exact distance is 1e-8 m above a whole dm): no random test finds this; the postcondition
+    # `\result * 2e8 >= v t 2e4 + a t^2` does
+    "curve rounding": Bug("return (num + 199999999) / 200000000;", "return (num + 199999998) / 200000000;",
+                          ("rg_run_dm",), ("rg_run_dm",), "typed_rg_run_dm_ensures", True),
+    # the revocable release one cycle late (calm reaches confirm while still held)
+    "late release": Bug("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm) {", ("rg_hold",),
+                        ("rg_hold",), "typed_rg_hold_ensures"),
+    # issue 29 (a): the hold lowers a brake one cycle early; rg_decide, which relies on
+    # rg_hold's contract, still proves, rg_hold's own postconditions do not
+    "early release": Bug("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm - 2) {",
+                         ("rg_hold", "rg_decide"), ("rg_hold",), "typed_rg_hold_ensures"),
+    # (a) the supervision ignores the remembered obstacle when no channel shows one (the
+    # common-cause blindness the memory exists for): inside EBI it no longer demands emergency
+    "remembered obstacle ignored when blind": Bug(
+        "    if (remembered) {\n        track_demand",
+        "    if (remembered && voted_dm != RG_NO_DISTANCE) {\n        track_demand",
+        ("rg_supervised_demand",), ("rg_supervised_demand",), "typed_rg_supervised_demand_ensures_2"),
+    # (b) the track's prediction drops the speed measurement error (the train may be faster
+    # than it says): the remembered gap shrinks too little per cycle
+    "prediction without speed error": Bug("const int64_t x = speed_cms * (1000 + error_permille);",
+                                          "const int64_t x = speed_cms * 1000;", ("rg_near_travel",),
+                                          ("rg_near_travel",), "typed_rg_near_travel_"),
+    # (b) ... drops the train's acceleration (traction plus downhill): Python's two
+    # postconditions of near_travel do not see this one, the C contract's third does
+    "prediction without acceleration": Bug("return v_max * period_ms + run + obstacle_cms * period_ms;",
+                                           "return v_max * period_ms + obstacle_cms * period_ms;",
+                                           ("rg_near_travel",), ("rg_near_travel",), "typed_rg_near_travel_"),
+    # (c) absence counts as evidence wherever the remembered obstacle is, also beyond the
+    # sensors' declared range, where ABSENT says nothing about it
+    "forget outside sensor range": Bug("if (!evidence || far > (int64_t)range_dm * RG_UNITS_PER_DM) {",
+                                       "if (!evidence) {", ("rg_forget",), ("rg_forget",), "typed_rg_forget_"),
+}
+
+
+def _groups() -> list[list[str]]:
+    """The bugs in as few runs as their proved functions allow (disjoint within a run)."""
+    groups: list[list[str]] = []
+    for name, bug in BUGS.items():
+        for g in groups:
+            if not any(set(bug.prove) & set(BUGS[o].prove) for o in g):
+                g.append(name)
+                break
+        else:
+            groups.append([name])
+    return groups
+
+
+@pytest.fixture(scope="module")
+def planted(cache) -> dict:
+    """Each bug's run (shared by the bugs planted with it)."""
+    out = {}
+    for group in _groups():
+        source = SOURCE
+        for name in group:
+            assert SOURCE.count(BUGS[name].old) == 1 and source.count(BUGS[name].old) == 1, name
+            source = source.replace(BUGS[name].old, BUGS[name].new)
+        functions = tuple(fn for name in group for fn in BUGS[name].prove)
+        r = proof.run_modified(source, functions=functions, cache_dir=cache)
+        out.update({name: r for name in group})
+    return out
+
+
+def _own(goals, functions) -> list[str]:
+    return [g for g in goals if any(g.startswith(f"typed_{fn}_") for fn in functions)]
+
+
+def test_planted_bugs_share_runs_only_where_their_functions_are_disjoint():
+    groups = _groups()
+    assert sorted(n for g in groups for n in g) == sorted(BUGS) and len(groups) < len(BUGS)
+    for g in groups:
+        proved = [fn for n in g for fn in BUGS[n].prove]
+        assert len(proved) == len(set(proved)), g
+
+
+@pytest.mark.parametrize("name", list(BUGS))
+def test_planted_bug_fails_the_proof_on_its_own_goals(planted, name):
+    """The proof must fail, on goals of the bug's `fail` functions only (among those it
+    proves), on each of them, and on the property named."""
+    bug, r = BUGS[name], planted[name]
+    failed = _own(r["wp"]["failed"], bug.prove)
+    assert not r["ok"] and not r["wp"]["ok"] and failed, r["wp"]
+    assert failed == _own(failed, bug.fail), failed
+    assert all(_own(failed, (fn,)) for fn in bug.fail), failed
+    assert (all if bug.every else any)(g.startswith(bug.goal) for g in failed), failed
+    # every other function this bug's run proves is proved: the bug stays where it is planted
+    for fn in bug.prove:
+        if fn not in bug.fail:
+            f = r["wp"]["per_function"][fn]
+            assert f["total"] > 0 and f["proved"] == f["total"], (name, fn, f)
+
+
+def test_a_failed_proof_is_a_failed_check_naming_the_goal(planted):
+    r = planted["2oo2 distance max"]
     checks = {c.name: c for c in proof.checks_of(r)}
     assert not checks["proof: all WP goals proved"].passed
-    assert "typed_rg_vote_2oo2_ensures" in checks["proof: all WP goals proved"].figure
-
-
-def test_planted_bug_3oo3_missing_error_term_fails_the_proof():
-    """The 3oo3 voter forgets that modules 2 and 3 may disagree."""
-    bug = SOURCE.replace("s[0] != s[1] || s[1] != s[2] || st == RG_DEGRADED", "s[0] != s[1] || st == RG_DEGRADED")
-    assert bug != SOURCE
-    r = proof.run_modified(bug, functions=("rg_vote_3oo3",))
-    assert not r["ok"]
-    assert r["wp"]["failed"] and all(g.startswith("typed_rg_vote_3oo3_ensures") for g in r["wp"]["failed"])
-
-
-def test_planted_bug_curve_rounding_fails_the_proof():
-    """The run distance rounded up with a constant one short (off by one: the curve is one
-    dm short whenever the exact distance is 1e-8 m above a whole dm). No random test finds
-    this; the postcondition `\\result * 2e8 >= v t 2e4 + a t^2` does."""
-    bug = SOURCE.replace("return (num + 199999999) / 200000000;", "return (num + 199999998) / 200000000;")
-    assert bug != SOURCE
-    r = proof.run_modified(bug, functions=("rg_run_dm",))
-    assert not r["ok"]
-    assert r["wp"]["failed"] and all(g.startswith("typed_rg_run_dm_ensures") for g in r["wp"]["failed"]), r["wp"]["failed"]
-
-
-def _planted(old: str, new: str, functions: tuple[str, ...], expect: tuple[str, ...]) -> list[str]:
-    """Plant `new` for `old` (once) in rg_core.c and prove `functions`: the proof must fail,
-    on goals of `expect` only, and on each of them; returns the failed goals."""
-    assert SOURCE.count(old) == 1, old
-    r = proof.run_modified(SOURCE.replace(old, new), functions=functions)
-    failed = r["wp"]["failed"]
-    assert not r["ok"] and failed, r["wp"]
-    assert all(any(g.startswith(f"typed_{fn}_") for fn in expect) for g in failed), failed
-    assert all(any(g.startswith(f"typed_{fn}_") for g in failed) for fn in expect), failed
-    return failed
-
-
-def test_planted_bug_late_release_fails_the_proof():
-    """The revocable release one cycle late (calm reaches confirm while still held)."""
-    failed = _planted("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm) {", ("rg_hold",), ("rg_hold",))
-    assert any(g.startswith("typed_rg_hold_ensures") for g in failed), failed
-
-
-# ---- issue 29: the hold and the obstacle memory
-
-def test_planted_bug_early_release_fails_the_proof():
-    """(a) The hold lowers an emergency (or a service brake) one cycle early: released after
-    release_confirm_cycles - 1 calm cycles. rg_decide, which relies on rg_hold's contract,
-    still proves; rg_hold's own postconditions do not."""
-    _planted("} else if (calm >= confirm - 1) {", "} else if (calm >= confirm - 2) {", ("rg_hold", "rg_decide"),
-             ("rg_hold",))
-
-
-def test_planted_bug_remembered_obstacle_ignored_when_blind_fails_the_proof():
-    """(a) The supervision ignores the remembered obstacle when no channel shows an obstacle
-    (the common-cause blindness the memory exists for): the remembered obstacle inside EBI
-    no longer demands emergency."""
-    failed = _planted("    if (remembered) {\n        track_demand",
-                      "    if (remembered && voted_dm != RG_NO_DISTANCE) {\n        track_demand",
-                      ("rg_supervised_demand",), ("rg_supervised_demand",))
-    assert "typed_rg_supervised_demand_ensures_2" in failed, failed     # track_dm <= track EBI ==> emergency
-
-
-def test_planted_bug_prediction_without_speed_error_fails_the_proof():
-    """(b) The track's prediction drops the speed measurement error (the train may be faster
-    than it says): the remembered gap shrinks too little per cycle."""
-    _planted("const int64_t x = speed_cms * (1000 + error_permille);", "const int64_t x = speed_cms * 1000;",
-             ("rg_near_travel",), ("rg_near_travel",))
-
-
-def test_planted_bug_prediction_without_acceleration_fails_the_proof():
-    """(b) The track's prediction drops the train's acceleration (traction plus downhill).
-    Python's two postconditions of near_travel do not see this one; the C contract's third,
-    with every term, does."""
-    _planted("return v_max * period_ms + run + obstacle_cms * period_ms;",
-             "return v_max * period_ms + obstacle_cms * period_ms;", ("rg_near_travel",), ("rg_near_travel",))
-
-
-def test_planted_bug_forget_outside_sensor_range_fails_the_proof():
-    """(c) Absence counts as evidence wherever the remembered obstacle is, also beyond the
-    sensors' declared range, where ABSENT says nothing about it."""
-    _planted("if (!evidence || far > (int64_t)range_dm * RG_UNITS_PER_DM) {", "if (!evidence) {", ("rg_forget",),
-             ("rg_forget",))
+    assert r["wp"]["proved"] < r["wp"]["summary_total"]
+    assert r["wp"]["failed"][0] in checks["proof: all WP goals proved"].figure
 
 
 def test_missing_frama_c_is_a_failed_check(monkeypatch, tmp_path):
@@ -234,7 +267,7 @@ def test_contracts_state_the_python_properties():
     assert "ensures sighted != 0 && \\old(track->near) == -1 ==>" in _contract("rg_observe")
 
 
-def test_planted_runtime_error_is_an_eva_alarm():
+def test_planted_runtime_error_is_an_eva_alarm(cache):
     """rg_is_fresh as it was before the proof (`now - received` overflows int64 for extreme
     ticks): WP cannot prove its RTE guard and EVA raises an alarm in the step."""
     old = "    return received <= now && now - received <= timeout_ticks;\n}"
@@ -243,7 +276,8 @@ def test_planted_runtime_error_is_an_eva_alarm():
     end = SOURCE.index("\n}", body) + 2
     bug = SOURCE[:body] + "{\n" + old + SOURCE[end:]
     assert bug != SOURCE and "if (received >= 0) return" not in bug
-    r = proof.run_modified(bug, eva=True, eva_runs=proof.EVA_RUNS[:1], functions=("rg_is_fresh", "rg_effective_status"))
+    r = proof.run_modified(bug, eva=True, eva_runs=proof.EVA_RUNS[:1], functions=("rg_is_fresh", "rg_effective_status"),
+                           cache_dir=cache)
     assert not r["ok"]
     assert any("rg_is_fresh_assert_rte_signed_overflow" in g for g in r["wp"]["failed"]), r["wp"]["failed"]
     step = r["eva"][0]

@@ -97,9 +97,11 @@ def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
     assert data["passed"] is False
 
 
-# parts whose quick section its own test module already runs and asserts, check by check, in CI
-# (tests/test_verify_seed000.py, test_verify_seed001.py): run once, not twice (24 s of the serial phase)
-OWN_TESTS = ("seed000", "seed001")
+# parts whose section its own test module already runs and asserts, check by check, in CI
+# (tests/test_verify_seed000.py, test_verify_seed001.py: the quick section, 24 s of the serial
+# phase; tests/test_physics.py: the full physics part through the same command, 35 s): run
+# once, not twice
+OWN_TESTS = ("seed000", "seed001", "physics")
 
 
 def test_verify_quick_passes_with_report_and_json(tmp_path):

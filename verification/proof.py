@@ -143,10 +143,14 @@ def why3_detect(env: dict) -> list[str]:
 # ---------------------------------------------------------------- commands
 
 def wp_command(functions: tuple[str, ...] = FUNCTIONS, assertions: tuple[str, ...] = STEP_ASSERTIONS,
-               wp_timeout: int = WP_TIMEOUT_S) -> list[str]:
+               wp_timeout: int = WP_TIMEOUT_S, cache_dir: str | Path | None = None) -> list[str]:
     cmd = ["frama-c", *STEP_KERNEL, "rg_core.c", "rg_sha256.c",
            "-wp", "-wp-rte", "-wp-fct", ",".join(functions), "-wp-prover", PROVERS,
            "-wp-timeout", str(wp_timeout), "-wp-par", str(WP_PAR)]
+    if cache_dir:
+        # WP's own cache, keyed by each goal's full text: a goal proved before is not sent to
+        # the provers again (the planted-bug runs share the unchanged goals with the real run)
+        cmd += ["-wp-cache", "update", "-wp-cache-dir", str(Path(cache_dir).resolve())]
     if assertions:
         cmd += ["-then", "-wp-fct", "rg_step", "-wp-no-rte", "-wp-prop", ",".join(assertions)]
     # the status of every property (printed first: the classification stops at the first error),
@@ -331,7 +335,7 @@ def _shell(cmd: list[str]) -> str:
 
 def run(progress: Progress = lambda s: None, core_dir: str | Path | None = None, eva: bool = True,
         functions: tuple[str, ...] = FUNCTIONS, keep: str | Path | None = None, timeout: float = 900,
-        wp_timeout: int = WP_TIMEOUT_S, eva_runs: tuple = EVA_RUNS) -> dict:
+        wp_timeout: int = WP_TIMEOUT_S, eva_runs: tuple = EVA_RUNS, cache_dir: str | Path | None = None) -> dict:
     """Prove the C core in `core_dir` (default: fmu/c/core): WP, then (if `eva`) the EVA runs.
 
     Returns a dict with "ok", "wp" (proved/total, per function and prover, failed goals),
@@ -339,7 +343,8 @@ def run(progress: Progress = lambda s: None, core_dir: str | Path | None = None,
     "seconds"; "missing" lists the tools not installed (then "ok" is False and nothing ran).
     `keep` names a folder that receives the logs and the generated table headers; `functions`
     narrows WP down to some of the contracted functions and `eva_runs` selects among EVA_RUNS
-    (planted-bug tests)."""
+    (planted-bug tests); `cache_dir` is a WP cache shared between runs (the tests': empty at
+    the start of a session, so the real sources are always proved afresh there)."""
     t0 = time.perf_counter()
     core = Path(core_dir) if core_dir else CORE_DIR
     result: dict = {"ok": False, "core_dir": str(core), "functions": list(functions), "commands": [],
@@ -368,7 +373,7 @@ def run(progress: Progress = lambda s: None, core_dir: str | Path | None = None,
         wp_dir.mkdir()
         _prepare(core, wp_dir)
         asserts = STEP_ASSERTIONS if "rg_step" not in functions else ()
-        jobs.append(("wp", wp_command(functions, asserts, wp_timeout), wp_dir))
+        jobs.append(("wp", wp_command(functions, asserts, wp_timeout, cache_dir), wp_dir))
         if eva:
             for harness, model, kernel, options in eva_runs:
                 tag = f"{Path(harness).stem}-{model}"
@@ -432,14 +437,15 @@ def run(progress: Progress = lambda s: None, core_dir: str | Path | None = None,
 
 def run_modified(source: str, progress: Progress = lambda s: None, eva: bool = False,
                  functions: tuple[str, ...] = FUNCTIONS, wp_timeout: int = WP_TIMEOUT_S,
-                 eva_runs: tuple = EVA_RUNS) -> dict:
+                 eva_runs: tuple = EVA_RUNS, cache_dir: str | Path | None = None) -> dict:
     """The proof of a modified rg_core.c (its text), the other core files unchanged: what CI
     would say if that were the committed source (with the default `wp_timeout`, CI's)."""
     with tempfile.TemporaryDirectory(prefix="railguard-mutant-") as tmp:
         for name in CORE_FILES:
             shutil.copy2(CORE_DIR / name, Path(tmp) / name)
         (Path(tmp) / "rg_core.c").write_text(source)
-        return run(progress, core_dir=tmp, eva=eva, functions=functions, wp_timeout=wp_timeout, eva_runs=eva_runs)
+        return run(progress, core_dir=tmp, eva=eva, functions=functions, wp_timeout=wp_timeout, eva_runs=eva_runs,
+                   cache_dir=cache_dir)
 
 
 # ---------------------------------------------------------------- report

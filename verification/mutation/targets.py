@@ -30,15 +30,17 @@ C_TESTS = ("tests/test_fmu_equivalence.py",)
 # the functions of rg_core.c that are mutated: freshness and range, the voters, the zones,
 # the supervision ladder, combine, the hold (the latch's successor), the table's hold, the
 # supervision of voted and remembered obstacle and the decision (issue 29), the obstacle
-# memory (prediction, observation, forgetting, the remembered distance), the speed class and
-# the plausibility check (issue 38)
+# memory (prediction, observation, forgetting, the remembered distance), the speed class,
+# the plausibility check and the several tracks (issue 38: relation, assign, absorb, merge,
+# order, insert, each track's supervision)
 # (the decisions the Python-vs-C comparison must pin; the curve arithmetic, rg_step's
 # plumbing, the configuration and table checks and SHA-256 are not mutated yet)
 C_FUNCTIONS = ("rg_in_range", "rg_is_fresh", "rg_effective_status", "rg_vote_2oo2", "rg_disagreement",
                "rg_distances_disagree", "rg_vote_3oo3", "rg_zone", "rg_supervision_demand", "rg_combine", "rg_hold",
                "rg_table_hold", "rg_supervised_demand", "rg_decide", "rg_accel_run", "rg_near_travel",
                "rg_far_travel", "rg_observe", "rg_forget", "rg_seen_beyond", "rg_track_dm", "speed_class", "rg_plaus_anchor",
-               "rg_plaus_continues", "rg_plausibility")
+               "rg_plaus_continues", "rg_plausibility", "rg_relation", "rg_assign", "rg_absorbed", "rg_merge",
+               "rg_order_pair", "rg_ordered", "rg_insert_full", "rg_insert", "rg_remembered_demand")
 
 Progress = Callable[[str], None]
 
