@@ -868,3 +868,105 @@ def test_a_known_sequence_goes_through_every_mode(monitor_drivers):
     modes = [ref.step(inp, c)[-1].mode for inp, c in steps]
     assert {1, 2, 3} <= set(modes), modes
     _check(monitor_drivers[("m1", 2)], table, {}, steps)
+
+
+def _sighting(dm: int, module: int | None = None) -> StepInput:
+    """Every channel (module None) or one module's two channels report an obstacle at `dm`,
+    standing train; the others ABSENT."""
+    ch = ChannelInput(1, metres(dm), 0.0, 0, True)
+    chans = [ch] * CHANNELS if module is None else _module_sees([CLEAR] * CHANNELS, 2 * module, ch)
+    return StepInput(tuple(chans), 0.0)
+
+
+def test_a_weak_and_a_strong_track_merge_strong_in_c_too(monitor_drivers):
+    """Issue 38 item 2 (mutation testing of rg_merge: `strong` as AND survived): three weak
+    tracks (one module each), then a confirmed fourth beyond them: the farthest weak one and
+    the confirmed one merge, strong. After forget_single_ms of blindness the two nearer weak
+    tracks are forgotten and the merged one, strong, is the nearest: a merge that made it weak
+    would forget it with them."""
+    table = read("m1")
+    params = {"sensor_range_dm": 60000}
+    clear = (StepInput((CLEAR,) * CHANNELS, 0.0), 1)
+    steps = []
+    for dm, module in ((10000, 0), (20000, 1), (30000, 2), (40000, None)):
+        steps += [clear, (_sighting(dm, module), 1)]
+    blind = StepInput((ChannelInput(2, 0.0, 0.0, 0, True),) * CHANNELS, 0.0)    # DEGRADED: no evidence
+    steps += [clear] * 12 + [(blind, 1)]
+    ref = MonitorReference(table, params)
+    outs = [ref.step(inp, c)[-1] for inp, c in steps]
+    assert outs[-1].track_dm == 30000 - 1 and ref.state.tracks[0].strong, (outs[-1], ref.state.tracks)
+    assert ref.state.tracks[1].near == NO_TRACK
+    _check(monitor_drivers[("m1", 2)], table, params, steps)
+
+
+def test_three_tracks_tied_at_zero_keep_their_order_in_c_too(monitor_drivers):
+    """Issue 38 item 2 (mutation testing of rg_order_pair: `<=` for `<` survived): with a
+    declared accuracy of 0, each sighting 1 dm beyond the last track's least position is a
+    new track, so three tracks lie within a metre; the train runs on, blind, and their
+    worst-case positions all reach 0 m before any least one does: three equal keys. A stable
+    order keeps the first-created track first (the most track_cycles); an exchange on ties
+    turns them around."""
+    table = read("m1")
+    params = {"sensor_range_dm": 60000, "distance_accuracy_dm": 0}
+    v = 200
+    clear = (StepInput((CLEAR,) * CHANNELS, speed_mps(v)), 1)
+    ref = MonitorReference(table, params)
+    steps, dm = [], 200
+    for _ in range(3):
+        ref.step(*clear)
+        if ref.state.tracks[0].near != NO_TRACK:       # (the least position the next cycle judges by)
+            dm = max(t.far for t in ref.state.tracks) // UNITS_PER_DM + 1
+        seen = (StepInput((ChannelInput(1, metres(dm), closing_mps(v), 0, True),) * CHANNELS, speed_mps(v)), 1)
+        ref.step(*seen)
+        steps += [clear, seen]
+    blind = (StepInput((ChannelInput(2, 0.0, 0.0, 0, True),) * CHANNELS, speed_mps(v)), 1)
+    tied = 0
+    while ref.state.tracks[0].near != NO_TRACK and len(steps) < 200:       # until they are passed
+        ref.step(*blind)
+        steps.append(blind)
+        tied += [t.near for t in ref.state.tracks] == [0, 0, 0]
+    assert tied >= 1, ref.state.tracks
+    _check(monitor_drivers[("m1", 2)], table, params, steps)
+
+
+def _merge_with_an_aged_sighting(held: tuple, x_dm: int, x_modules: tuple = (0, 1)) -> list:
+    """Three tracks (`held`: (dm, module or None for every channel), each after a clear
+    cycle), then an obstacle at `x_dm` that `x_modules` see with one channel in one cycle
+    (no track: no module sees it with both) and with the other in the next, the first gone
+    silent: they see it with a report one cycle old, so the new track (strong if two modules
+    see it) comes into a full memory with a sighting's age. Then blindness (ABSENT: evidence)
+    until the weak tracks are forgotten. The train runs at 20 m/s."""
+    v = speed_mps(2000)
+    clear = (StepInput((CLEAR,) * CHANNELS, v), 1)
+
+    def seen(dm, channels):
+        ch = ChannelInput(1, metres(dm), closing_mps(2000), 0, True)
+        return (StepInput(tuple(ch if i in channels else CLEAR for i in range(CHANNELS)), v), 1)
+
+    steps = []
+    for dm, module in held:
+        steps += [clear, seen(dm, range(CHANNELS) if module is None else (2 * module, 2 * module + 1))]
+    first = seen(x_dm, tuple(2 * m for m in x_modules))
+    second = list(seen(x_dm, tuple(2 * m + 1 for m in x_modules))[0].channels)
+    for m in x_modules:
+        second[2 * m] = SILENT
+    steps += [clear, first, (StepInput(tuple(second), v), 1)]
+    return steps + [clear] * 14
+
+
+def test_a_track_merged_with_its_sighting_s_age_agrees_in_c_too(monitor_drivers):
+    """Issue 38 item 2 (mutation testing of rg_insert_full: the merged slot's and the new
+    track's ages). A new track that takes a sighting one cycle old is moved by that age too;
+    which slot carries it after the merge shows once the weak tracks are forgotten and it, or
+    the merged one, is the nearest."""
+    table = read("m1")
+    params = {"sensor_range_dm": 60000}
+    stories = ((((8000, 1), (20000, None), (30000, None)), 14000, (0, 1)),   # the new one between, strong: nearest
+               (((8000, 1), (20000, None), (30000, None)), 14000, (0,)),     # ... weak: forgotten, the merged nearest
+               (((8000, 1), (14000, 2), (20000, None)), 30000, (0, 1)))      # the new one farthest: merged, nearest
+    for held, x_dm, x_modules in stories:
+        steps = _merge_with_an_aged_sighting(held, x_dm, x_modules)
+        ref = MonitorReference(table, params)
+        outs = [ref.step(inp, c)[-1] for inp, c in steps]
+        assert outs[-1].track_dm != NO_DISTANCE and outs[-1].track_dm > held[0][0] - 3000, (held, outs[-1])
+        _check(monitor_drivers[("m1", 2)], table, params, steps)
