@@ -22,10 +22,19 @@ REALTIME_MODULES = frozenset({"test_can_flood", "test_can_realbus", "test_can_ru
                               "test_log_corpus", "test_socketcan", "test_verify"})
 
 
+# The longest modules (minutes on one worker: the whole core's Frama-C proof, the Python
+# mutation test, the physics part, the evaluation), collected first: pytest-xdist's
+# `--dist loadfile` hands out modules in collection order, and a long one handed out last
+# finishes alone while the other worker idles
+LONGEST_FIRST = ("test_proof", "test_mutation", "test_physics", "test_evaluate")
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.path.stem in REALTIME_MODULES:
             item.add_marker(pytest.mark.realtime)
+    rank = {stem: i for i, stem in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.stem, len(rank)))      # (stable: the rest as collected)
 
 
 def independent_values(model, action, nxt) -> np.ndarray:
