@@ -24,8 +24,9 @@ REALTIME_MODULES = frozenset({"test_can_flood", "test_can_realbus", "test_can_ru
 
 # The longest modules (minutes on one worker: the whole core's Frama-C proof, the Python
 # mutation test, the physics part, the evaluation), collected first: pytest-xdist's
-# `--dist loadfile` hands out modules in collection order, and a long one handed out last
-# finishes alone while the other worker idles
+# `--dist loadfile` hands out modules in collection order (with --no-loadscope-reorder,
+# pyproject.toml; by default it orders them by their number of tests), and a long one handed
+# out last finishes alone while the other worker idles
 LONGEST_FIRST = ("test_proof", "test_mutation", "test_physics", "test_evaluate")
 
 
