@@ -35,7 +35,7 @@ def far_travel(speed_cms, error_permille: int, accel_mms2: int, period_ms: int) 
     return np.maximum(run, 0)
 
 
-# the rows of VectorMonitor.slots: types.Track's fields, each a (TRACKS, n) array (slot i of
+# the rows of TrackMemory.slots: types.Track's fields, each a (TRACKS, n) array (slot i of
 # train j at [i, j]: slot-major, so that a train's values broadcast along the trains)
 SLOT_FIELDS = ("near", "far", "closing", "cycles", "absent", "strong")
 
