@@ -43,9 +43,10 @@ FRAME_LENGTH = 8
 INPUT_IDS = frozenset(OBSTACLE_IDS) | {TRAIN_STATE_ID}   # what the monitor reads (rate-checked)
 
 REJECT_REASONS = ("unknown_id", "wrong_length", "bad_crc", "repeated_counter", "counter_jump",
-                  "out_of_range", "rate_exceeded", "second_sender", "undecodable")
+                  "out_of_range", "rate_exceeded", "second_sender", "undecodable",
+                  "stale_freshness", "bad_mac", "no_key")          # the last three: a secured bus only
 # refused before the codec sees the frame (can_bus/frames.py, runner.MonitorCore)
-SHELL_REJECT_REASONS = ("fd_frame", "remote_frame", "error_frame", "foreign_output", "receive_error")
+SHELL_REJECT_REASONS = ("fd_frame", "classical_frame", "remote_frame", "error_frame", "foreign_output", "receive_error")
 BABBLE_QUARANTINE_MS = 500   # a babbling sender is ignored this long after its last excess frame
 MAX_FRAMES_PER_WINDOW = 3    # more frames than this from one sender within one period: babbling
 CONFLICT_WINDOW_MS = 500     # the same counter with other content this soon: a second sender (a 4-bit
@@ -128,6 +129,7 @@ class Receiver:
     accepted: int = 0
     rejected: Tally = field(default_factory=Tally)
     senders: dict = field(default_factory=dict)
+    security: Optional[object] = None      # a security.Security: a secured bus (None: E2E only)
 
     def __post_init__(self) -> None:
         if not self.reports:
@@ -185,6 +187,13 @@ class Receiver:
             return True
         return False
 
+    def _contest(self, frame_id: int, state: SenderState, tick: int) -> None:
+        """A frame that fails its authenticator (secured bus): another node writes the ID, a
+        second sender as surely as a conflicting counter is. The ID is quarantined as
+        `_second_sender` does; the frame itself is counted as `bad_mac`."""
+        state.contested_until = tick + SECOND_SENDER_QUARANTINE_MS
+        self._withdraw(frame_id)
+
     def contested(self, frame_id: int, tick: int) -> bool:
         """Whether `frame_id` has a second sender (its quarantine runs at `tick`)."""
         state = self.senders.get(frame_id)
@@ -202,6 +211,13 @@ class Receiver:
             state.counter = None                 # the stream is broken: resynchronise afterwards
             self._reject("rate_exceeded")
             return None
+        if self.security is not None:
+            verdict, data = self.security.open(frame_id, data)
+            if verdict != "ok":
+                if verdict == "bad_mac":          # a node without the owner's key writes the ID
+                    self._contest(frame_id, state, tick)
+                self._reject(verdict)
+                return None
         if len(data) != FRAME_LENGTH:
             self._reject("wrong_length")
             return None
@@ -256,12 +272,15 @@ class Receiver:
 
 
 class Sender:
-    """Keeps one alive counter per frame ID and encodes frames in order."""
+    """Keeps one alive counter per frame ID and encodes frames in order; with a `security`
+    (security.Security) each frame is sealed: a secured CAN FD frame under the ID's key."""
 
-    def __init__(self) -> None:
+    def __init__(self, security=None) -> None:
         self.counters: dict[int, int] = {}
+        self.security = security
 
     def frame(self, frame_id: int, signals: dict) -> bytes:
         c = (self.counters.get(frame_id, -1) + 1) & 0xF
         self.counters[frame_id] = c
-        return encode(frame_id, signals, c)
+        data = encode(frame_id, signals, c)
+        return data if self.security is None else self.security.seal(frame_id, data)

@@ -70,6 +70,15 @@ class Player:
         self.frozen: dict = {}
         self.brakes = BrakeReceiver(self.period_ms)
         self.hostile: Optional[Hostile] = None     # join_hostile: a second node for the hostile faults
+        self.security = None                       # secure(): the sensors' and train's keys
+
+    def secure(self, security) -> None:
+        """Sign the sensors' and the train's frames and verify the monitor's under `security`
+        (security.Security; None leaves the bus unsecured). The hostile node stays keyless."""
+        self.security = security
+        if security is not None:
+            self.receiver = Receiver(security=security)
+            self.sender = Sender(security)
 
     @property
     def wants_hostile(self) -> bool:
@@ -78,7 +87,7 @@ class Player:
 
     def join_hostile(self, bus: can.BusABC) -> None:
         """Play the scenario's hostile faults as a second node on its own connection `bus`."""
-        self.hostile = Hostile(bus)
+        self.hostile = Hostile(bus, secured=self.security is not None)
 
     # ------------------------------------------------------------------ world
     def obstacle_distance(self, ch: Optional[int] = None) -> Optional[tuple[float, object]]:
@@ -151,7 +160,7 @@ class Player:
 
     def send(self, frame_id: int, data: bytes) -> None:
         try:
-            self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False))
+            self.bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False, is_fd=len(data) > 8))
             self.frames_sent += 1
         except can.CanError:
             pass
@@ -186,7 +195,7 @@ class Player:
                 if self.active("bad_crc", ch):
                     data[0] ^= 0x5A
                 if self.active("wrong_length", ch):
-                    data = data[:6]
+                    data = data[:6] if len(data) <= 8 else data[:16]   # (secured: a shorter FD length)
                 self.send(fid, bytes(data))
 
     # ------------------------------------------------------------------ one period

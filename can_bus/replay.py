@@ -39,6 +39,7 @@ from .logfile import LogError, LogFrame, read
 from monitor.risk_summary import RiskTally
 
 from .runner import CycleRecord, MonitorCore, TrackTally
+from .security import UNSECURED, describe
 
 ReplayError = LogError     # the CLI's name for a log that cannot be replayed
 Decision = CycleRecord     # a replayed cycle is recorded exactly like a live one
@@ -74,6 +75,7 @@ class ReplayStats:
     agreeing: int = 0
     brake_side: Counter = field(default_factory=Counter)   # cycles the brake receiver braked, by cause
     brake_frames: int = 0                                  # BrakeDemand frames in the log
+    bus_security: str = UNSECURED              # security.describe of the replay's bus
     track: TrackTally = field(init=False)      # the remembered obstacle, cycle by cycle
     risk: RiskTally = field(init=False)        # the papers' risk and the table's, cycle by cycle
 
@@ -112,6 +114,9 @@ class ReplayStats:
             out["agreement_with_recorded"] = self.agreeing / self.recorded_demands
         if self.brake_frames:
             out["brake_receiver"] = dict(sorted(self.brake_side.items()))
+        out["bus_security"] = self.bus_security
+        if self.bus_security == UNSECURED and self.rejected.get("fd_frame"):
+            out["note"] = "the log holds CAN FD frames (a secured bus?): replay it with --keys DIR, the run's key set"
         return out
 
 
@@ -119,7 +124,7 @@ class Replay:
     """One replay of one log: iterate `run(frames)` for the decisions, then read `stats`."""
 
     def __init__(self, setup: core.Setup, *, max_gap_s: float = DEFAULT_MAX_GAP_S, on_time_error: str = "split",
-                 source: str = "log") -> None:
+                 source: str = "log", keys=None) -> None:
         if on_time_error not in ON_TIME_ERROR:
             raise ValueError(f"on_time_error must be one of {ON_TIME_ERROR}")
         if not max_gap_s > 0:
@@ -129,7 +134,9 @@ class Replay:
         self.max_gap_s = max_gap_s
         self.on_time_error = on_time_error
         self.source = source
+        self.keys = keys              # the key set of a secured log (None: unsecured, E2E only)
         self.stats = ReplayStats(self.period)
+        self.stats.bus_security = describe(self._security("brakes"))
         self._recent: dict = {}      # tick -> demand of the last two cycles (agreement)
         self._brakes: tuple = self._brake_side_anew()   # the brake side (receiver, brake receiver), per segment
         self._pending: dict = {}     # tick -> recorded levels waiting for that cycle
@@ -164,7 +171,7 @@ class Replay:
                     yield from self._cycles(mon, tick, last_ftick + self.period)
                     tick = (last_ftick + self.period) // self.period * self.period + self.period
                     st.absorb(mon, self._brakes[1])
-                mon = MonitorCore(self.setup, recorded_outputs=True)
+                mon = MonitorCore(self.setup, recorded_outputs=True, security=self._security("monitor"))
                 self._brakes = self._brake_side_anew()
                 seg_t0, seg_tick0 = ts, tick
                 st.segment_count += 1
@@ -186,8 +193,18 @@ class Replay:
         yield from self._cycles(mon, tick, last_ftick + self.period)
         st.absorb(mon, self._brakes[1])
 
+    def _security(self, node: str):
+        """A fresh Security for a segment's node (freshness in memory: the log is its own session)."""
+        if self.keys is None:
+            return None
+        from .keys import SENDERS
+        from .security import for_node
+
+        return for_node(self.keys, node, SENDERS if node == "monitor" else ("monitor",), state=False)
+
     def _brake_side_anew(self) -> tuple:
-        return Receiver(channels=self.setup.config.channels), BrakeReceiver(self.period)
+        return (Receiver(channels=self.setup.config.channels, security=self._security("brakes")),
+                BrakeReceiver(self.period))
 
     def _brake_side(self, msg, tick: int) -> None:
         """The frame as the brake controller's receiver reads it (every frame on the bus)."""

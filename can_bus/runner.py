@@ -175,6 +175,7 @@ class MonitorCore:
 
     setup: core.Setup
     recorded_outputs: bool = False
+    security: Optional[object] = None        # security.Security of a secured bus; None: unsecured (E2E only)
     receiver: Receiver = field(init=False)
     tally: frames.FrameTally = field(default_factory=frames.FrameTally)
     recorded_demands: list = field(default_factory=list)     # (tick, level) of the recorded monitor
@@ -182,7 +183,8 @@ class MonitorCore:
 
     def __post_init__(self) -> None:
         cfg = self.setup.config
-        self.receiver = Receiver(channels=cfg.channels, rate_window_ms=cfg.period_ms)
+        self.receiver = Receiver(channels=cfg.channels, rate_window_ms=cfg.period_ms, security=self.security)
+        self.frame_kind = "classical" if self.security is None else "fd"   # the only kind decoded
         self.state = core.initial_state(self.setup)
         self.period = cfg.period_ms
         self.own: dict = {}
@@ -198,7 +200,7 @@ class MonitorCore:
         if not frames.monitored(msg):
             self.tally.filtered += 1
             return None
-        if kind != "classical":
+        if kind != self.frame_kind:          # (a secured bus: a classical frame is an unsecured one)
             self.receiver.rejected[f"{kind}_frame"] += 1
             return None
         fid = msg.arbitration_id
@@ -208,10 +210,16 @@ class MonitorCore:
                 self.receiver.rejected["foreign_output"] += 1
                 self.foreign_until = tick + FOREIGN_HOLD_CYCLES * self.period
             return None
-        return self.receiver.accept(fid, data, tick, False)
+        return self.receiver.accept(fid, data, tick, msg.is_extended_id)
 
     def _own_output(self, fid: int, data: bytes, tick: int) -> bool:
-        if not self.recorded_outputs or len(data) != FRAME_LENGTH or not check_profile2_crc(data, data_id(fid)):
+        if not self.recorded_outputs:
+            return False
+        if self.security is not None:           # the recorded monitor's frames verify under its key
+            verdict, data = self.security.open(fid, data)
+            if verdict != "ok":
+                return False
+        if len(data) != FRAME_LENGTH or not check_profile2_crc(data, data_id(fid)):
             return False
         counter = data[1] & 0xF
         last = self.own.get(fid)
@@ -245,8 +253,9 @@ class MonitorRunner:
     setup: core.Setup
     clock: object
     on_cycle: Optional[Callable[[CycleRecord], None]] = None
+    security: Optional[object] = None        # security.Security (the monitor's keys); None: unsecured
     monitor: MonitorCore = field(init=False)
-    sender: Sender = field(default_factory=Sender)
+    sender: Sender = field(init=False)
     records: list = field(default_factory=list)
     overruns: int = 0            # consecutive
     deadline_misses: int = 0     # total
@@ -256,7 +265,8 @@ class MonitorRunner:
     max_send_gap_ms: int = 0     # largest gap between two BrakeDemand sends (wall clock; 0 when simulated)
 
     def __post_init__(self) -> None:
-        self.monitor = MonitorCore(self.setup)
+        self.monitor = MonitorCore(self.setup, security=self.security)
+        self.sender = Sender(self.security)
         self.period = self.setup.config.period_ms
         self.next_tick = self.clock.now_ms()
         self.table_hash = int(self.setup.table.sha256[:3], 16)
@@ -347,11 +357,12 @@ class MonitorRunner:
                                 "TrackAge": track_age(out.track_cycles, self.period)}),
             (MONITOR_RISK_ID, {"RiskCategory": out.risk_category, "RiskScore": out.risk_score,
                                "R1": per_mille_up(out.r1_ppm), "R2": per_mille_up(out.r2_ppm),
-                               "TableRisk": out.table_risk_ppm}),
+                               "TableRisk": out.table_risk_ppm, "Unsecured": int(self.security is None)}),
         )
         for frame_id, signals in messages:
             data = self.sender.frame(frame_id, signals)
-            if self._transmit(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False)):
+            if self._transmit(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False,
+                                          is_fd=len(data) > FRAME_LENGTH)):
                 self.frames_sent += 1
                 if frame_id == BRAKE_DEMAND_ID and not self.clock.simulated:
                     now = time.monotonic_ns() // 1_000_000

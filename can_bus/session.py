@@ -28,6 +28,7 @@ from .logfile import CandumpWriter
 from .player import Player
 from .runner import MonitorRunner, TrackTally, held_unseen, risk_columns, risk_summary, track_columns
 from .scenario import Scenario
+from .security import describe as describe_security
 
 VIRTUAL_CHANNEL = "railguard"
 RECORDER_BUDGET_S = 0.010    # per cycle on a real bus: the recorder may never hold the monitor's cycle
@@ -42,12 +43,14 @@ class MonitorNotReady(RuntimeError):
 
 
 def open_bus(bus_kwargs: dict, *, monitor: bool = False) -> can.BusABC:
-    """Open a python-can bus; the monitor's own connection gets the kernel receive filter
-    (SocketCAN) and CAN FD frames enabled, so that it sees, and counts, what replay counts."""
+    """Open a python-can bus; on SocketCAN every connection has CAN FD frames enabled (the
+    secured bus sends them), and the monitor's own gets the kernel receive filter, so that it
+    sees, and counts, what replay counts."""
     kwargs = dict(bus_kwargs)
-    if monitor and kwargs.get("interface") == "socketcan":
-        kwargs.setdefault("can_filters", frames.kernel_filters())
-        kwargs.setdefault("fd", True)
+    if kwargs.get("interface") == "socketcan":
+        kwargs.setdefault("fd", True)          # every node: a secured bus's frames are CAN FD frames
+        if monitor:
+            kwargs.setdefault("can_filters", frames.kernel_filters())
     try:
         return can.Bus(**kwargs)
     except Exception as exc:  # noqa: BLE001 - python-can raises OSError, CanError, ValueError, ...
@@ -166,6 +169,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "deadline_misses": runner.deadline_misses,
         "max_send_gap_ms": None if runner.clock.simulated else runner.max_send_gap_ms,   # wall time only
         "send_failures": runner.send_failures,
+        "bus_security": describe_security(runner.security),
         "table": runner.setup.model,
         "table_sha256": runner.setup.table.sha256,
         "log": None if log is None else str(log),
@@ -192,6 +196,8 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
     else:
         speed = [0.0 if r.speed_cms is None else r.speed_cms / 100 for r in recs]
         true_d = None
+    if runner.security is None:
+        title += " - UNSECURED bus (E2E only)"
     return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs],
                     speed_distance=speed_distance(runner, player), **track_columns(recs), **risk_columns(recs))
 
@@ -290,18 +296,33 @@ def reporter(recorder: Recorder, show: Optional[Callable[[str], None]], player: 
 
 
 def run_virtual(setup: core.Setup, scenario: Scenario, out_dir: Path, *, show: Optional[Callable[[str], None]] = None,
-                plot: bool = True, duration_s: Optional[float] = None, player: Callable[..., Player] = Player) -> RunResult:
+                plot: bool = True, duration_s: Optional[float] = None, player: Callable[..., Player] = Player,
+                keys: Optional[Path] = None) -> RunResult:
     """Monitor + player + recorder on the in-process virtual bus, simulated clock; with
     `duration_s`, the run ends after that much monitor time even if the scenario has not.
     `player(bus, scenario, period_ms)` makes the world's side (default: the scenario player;
-    verification plays recorded worlds through a subclass)."""
+    verification plays recorded worlds through a subclass). `keys`: the key set of a secured
+    bus (every node signs and verifies, security.py); None: unsecured, E2E only."""
     out_dir.mkdir(parents=True, exist_ok=True)     # before any bus is opened: a bad --out is one error, no bus left open
     with StopOnSignal() as stop:
-        return _run_virtual(setup, scenario, out_dir, show, plot, stop, duration_s, player)
+        return _run_virtual(setup, scenario, out_dir, show, plot, stop, duration_s, player, keys)
+
+
+def node_security(keys: Optional[Path]) -> tuple:
+    """(monitor's, player's) Security on the key set `keys`, or (None, None) unsecured. The
+    monitor holds every key it verifies and its own; the player, the sensors' and the train's
+    it signs with and the monitor's that its brake receiver verifies."""
+    if keys is None:
+        return None, None
+    from .keys import SENDERS
+    from .security import for_node
+
+    return for_node(keys, "monitor", SENDERS), for_node(keys, "player", SENDERS)
 
 
 def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, duration_s=None,
-                 make_player: Callable[..., Player] = Player) -> RunResult:
+                 make_player: Callable[..., Player] = Player, keys: Optional[Path] = None) -> RunResult:
+    mon_security, player_security = node_security(keys)
     clock = SimClock()
     period = setup.config.period_ms
     buses = [can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False) for _ in range(3)]
@@ -310,10 +331,12 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, du
     recorder = Recorder(rec_bus, log_path, clock)
     try:
         player = make_player(player_bus, scenario, period)
+        player.secure(player_security)
         if player.wants_hostile:
             buses.append(can.Bus(interface="virtual", channel=VIRTUAL_CHANNEL, receive_own_messages=False))
             player.join_hostile(buses[-1])
-        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player, period_ms=period))
+        runner = MonitorRunner(mon_bus, setup, clock, on_cycle=reporter(recorder, show, player, period_ms=period),
+                               security=mon_security)
         limit = int(scenario.duration_s * 1000 / period) + 600   # room for the wait at the entry
         if duration_s is not None:
             limit = min(limit, max(1, round(duration_s * 1000 / period)))
@@ -328,22 +351,27 @@ def _run_virtual(setup, scenario, out_dir, show, plot, stop: threading.Event, du
     finally:
         for b in buses:
             b.shutdown()
+        for sec in (mon_security, player_security):
+            if sec is not None:
+                sec.save()
     plot_path = make_plot(out_dir / f"run-{scenario.name}.png", runner, player, f"railguard run: {scenario.name}") if plot else None
     return RunResult(summarise(runner, player, log_path, plot_path, recorder.complete), runner, player)
 
 
 def run_on_bus(setup: core.Setup, bus_kwargs: dict, out_dir: Path, *, scenario: Optional[Scenario],
                duration_s: Optional[float], show: Optional[Callable[[str], None]] = None, plot: bool = True,
-               name: str = "bus") -> RunResult:
+               name: str = "bus", keys: Optional[Path] = None) -> RunResult:
     """The monitor in real time on a real bus; with a scenario, the player runs in a thread
     on its own bus connection. SIGINT/SIGTERM end the run: one last emergency demand, the
     summary, exit 0."""
     out_dir.mkdir(parents=True, exist_ok=True)     # before any bus is opened
     with StopOnSignal() as stop:
-        return _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop)
+        return _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop, keys)
 
 
-def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop: threading.Event) -> RunResult:
+def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, name, stop: threading.Event,
+                keys: Optional[Path] = None) -> RunResult:
+    mon_security, player_security = node_security(keys)
     clock = WallClock()
     log_path = out_dir / f"run-{name}.log"
     opened: list = []
@@ -360,6 +388,7 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
             player_bus = open_bus(bus_kwargs)
             opened.append(player_bus)
             player = Player(player_bus, scenario, period)
+            player.secure(player_security)
             if player.wants_hostile:
                 opened.append(open_bus(bus_kwargs))
                 player.join_hostile(opened[-1])
@@ -368,7 +397,7 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
 
         runner = MonitorRunner(mon_bus, setup, clock,
                                on_cycle=reporter(recorder, show, player, lambda: runner.monitor.tally.bus_state,
-                                                 period))
+                                                 period), security=mon_security)
         cycles = None if duration_s is None else int(duration_s * 1000 / period)
         runner.run(cycles, stop=lambda: stop.is_set() or (player is not None and player.finished))
         stop.set()
@@ -379,6 +408,9 @@ def _run_on_bus(setup, bus_kwargs, out_dir, scenario, duration_s, show, plot, na
     finally:
         for b in opened:
             b.shutdown()
+        for sec in (mon_security, player_security):
+            if sec is not None:
+                sec.save()
     plot_path = make_plot(out_dir / f"run-{name}.png", runner, player, f"railguard run on {name}") if plot else None
     return RunResult(summarise(runner, player, log_path, plot_path, recorder.complete), runner, player)
 

@@ -64,6 +64,19 @@ def add_bus(p: argparse.ArgumentParser, real_only: bool = False) -> None:
     p.add_argument("--channel", help="python-can channel, e.g. vcan0 (default: vcan0 for socketcan)")
 
 
+def add_security(p: argparse.ArgumentParser, simulated: bool = True) -> None:
+    """--keys / --unsecured: whether the bus is secured (issue 39), and with which key set."""
+    g = p.add_mutually_exclusive_group()
+    default = ("on the in-process bus a test key set in OUT/test-keys, made on first use; on a real bus one of "
+               "the two options is required" if simulated else "one of the two options is required")
+    g.add_argument("--keys", metavar="DIR", help="key set of a secured bus (railguard keys new DIR): every frame is a "
+                                                 "CAN FD frame with a CMAC-AES-128 authenticator and a freshness "
+                                                 f"value (docs/can.md) (default: {default})")
+    g.add_argument("--unsecured", action="store_true",
+                   help="an unsecured bus: classical frames with E2E only (old logs, legacy sensors); any node can "
+                        "forge or replay frames, and the summary, MonitorRisk and the plot say so")
+
+
 def add_out(p: argparse.ArgumentParser, default: str = OUT, what: str = "output folder") -> None:
     p.add_argument("--out", default=default, metavar="DIR", help=f"{what} (default: %(default)s)")
 

@@ -2,6 +2,8 @@
 configuration, read from the user's files with errors that name them."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import argparse
 
 from .errors import UserError
@@ -70,6 +72,24 @@ def bus_kwargs(args: argparse.Namespace) -> dict | None:
     if cfg["interface"] == "virtual":
         cfg.setdefault("receive_own_messages", False)
     return cfg
+
+
+def bus_keys(args: argparse.Namespace, real_bus: bool, out: Path | None = None) -> Path | None:
+    """The key set a command's bus is secured with, None if --unsecured. Without either option:
+    on the in-process bus a test set in OUT/test-keys (made on first use); on a real bus test
+    keys are never a default, so the user must choose."""
+    from can_bus import keys
+    from can_bus.security import made_test_keys
+
+    if args.unsecured:
+        return None
+    if args.keys is not None:
+        keys.load(args.keys)                   # every key checked now: one error line, not a failure mid-run
+        return Path(args.keys)
+    if real_bus or out is None:
+        raise UserError("a real bus needs --keys DIR (a key set: railguard keys new DIR) or --unsecured "
+                        "(E2E only: any node can forge or replay frames)")
+    return made_test_keys(out / "test-keys")
 
 
 def cluster(args: argparse.Namespace, default_workers: int = 0):

@@ -1,12 +1,14 @@
 """The README's real-bus commands, exactly as written, end to end (issue 13).
 
 In one sandbox boot (can_bus.vcan, DESIGN.md section 7; tests/vcan_realbus.sh):
-- `railguard run --interface socketcan --channel vcan0 --no-player`, started in the
+- `railguard keys new hil-keys`, the key set the commands below are secured with;
+- `railguard run --interface socketcan --channel vcan0 --keys hil-keys --no-player`, started in the
   background by sh (so with SIGINT ignored until the monitor installs its handler) and
   interrupted with SIGINT after about 4 s: exit 0, status lines on stderr, the human summary
   on stdout, no traceback;
-- `railguard run --interface socketcan --channel vcan0 --duration 3`: player thread and
-  monitor in real time, with the live status line.
+- `railguard run --interface socketcan --channel vcan0 --keys hil-keys --duration 3`: player
+  thread and monitor in real time, with the live status line, every frame a secured CAN FD frame;
+- the monitor and `railguard play ... --keys hil-keys` as two processes, the monitor killed.
 On the host: the same real-time path on python-can's virtual interface, and the one-line
 error (exit 2) when the interface cannot be opened. Under CI=true a sandbox that cannot
 be set up is a failure, not a skip.
@@ -81,7 +83,7 @@ def read(folder: Path) -> tuple[str, str, int]:
 
 def test_readme_monitor_command_on_vcan0_stops_cleanly_on_sigint(sandbox):
     stdout, stderr, rc = read(sandbox / "monitor")
-    check_run(stdout, stderr, rc, "railguard run --interface socketcan --channel vcan0 --no-player (SIGINT)")
+    check_run(stdout, stderr, rc, "railguard run --interface socketcan --channel vcan0 --keys hil-keys --no-player (SIGINT)")
     assert "SIGKILL" not in stderr
     summary = human_summary(stdout)
     assert summary["outcome"] == "monitor_only"
@@ -92,10 +94,13 @@ def test_readme_monitor_command_on_vcan0_stops_cleanly_on_sigint(sandbox):
 
 def test_player_and_monitor_on_vcan0_with_status_line(sandbox):
     stdout, stderr, rc = read(sandbox / "player")
-    check_run(stdout, stderr, rc, "railguard run --interface socketcan --channel vcan0 --duration 3")
+    check_run(stdout, stderr, rc, "railguard run --interface socketcan --channel vcan0 --keys hil-keys --duration 3")
     summary = human_summary(stdout)
     assert summary["outcome"] != "monitor_only"          # the player ran and reported its outcome
     assert int(summary["cycles"]) == 30                    # 3 s of 100 ms cycles
+    assert summary["bus_security"].startswith("secured") and "TEST" not in summary["bus_security"], summary
+    assert int(summary["frames_received"]) >= 25 * 7 and summary["rejects"] == "-", summary   # every secured
+    assert summary["frame_kinds"].startswith("fd "), summary                 # CAN FD frame on vcan0 verified
 
 
 def test_kill_9_of_the_monitor_brakes_the_train_within_the_receivers_timeout(sandbox):
@@ -106,6 +111,7 @@ def test_kill_9_of_the_monitor_brakes_the_train_within_the_receivers_timeout(san
     assert rc == 0 and "Traceback" not in stdout + stderr, (rc, stderr[-1500:])
     s = json.loads(stdout)
     assert s["final_speed_mps"] == 0.0, s                  # stands: at 10 m/s it would have run on
+    assert s["bus_security"].startswith("secured"), s
     held = s["brake_receiver"]
     assert set(held) <= {"power_up", "timeout"} and held.get("timeout", 0) > 0, held
     # it braked once the newest valid BrakeDemand was older than the timeout (3 periods),
@@ -116,14 +122,14 @@ def test_kill_9_of_the_monitor_brakes_the_train_within_the_receivers_timeout(san
 
 
 def test_virtual_interface_in_real_time_with_the_player(tmp_path):
-    proc = subprocess.run([railguard(), "run", "--interface", "virtual", "--channel", "foo", "--duration", "2"],
+    proc = subprocess.run([railguard(), "run", "--interface", "virtual", "--channel", "foo", "--duration", "2", "--unsecured"],
                           capture_output=True, text=True, timeout=60, cwd=tmp_path)
-    check_run(proc.stdout, proc.stderr, proc.returncode, "railguard run --interface virtual --channel foo --duration 2")
+    check_run(proc.stdout, proc.stderr, proc.returncode, "railguard run --interface virtual --channel foo --duration 2 --unsecured")
     assert int(human_summary(proc.stdout)["cycles"]) == 20
 
 
 def test_unopenable_interface_is_one_line_exit_2(tmp_path):
-    proc = subprocess.run([railguard(), "run", "--interface", "socketcan", "--channel", "nosuch0", "--no-player"],
+    proc = subprocess.run([railguard(), "run", "--interface", "socketcan", "--channel", "nosuch0", "--no-player", "--unsecured"],
                           capture_output=True, text=True, timeout=60, cwd=tmp_path)
     lines = proc.stderr.strip().splitlines()
     context = f"rc {proc.returncode}, stderr {proc.stderr!r}, stdout {proc.stdout!r}"

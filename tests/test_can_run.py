@@ -339,7 +339,10 @@ ERROR_CASES = {
     "play-without-bus": lambda tmp: ["play", "static-obstacle"],
     # nobody on the bus: the player gives up waiting for the monitor instead of waiting forever
     "play-without-monitor": lambda tmp: ["play", "static-obstacle", "--interface", "virtual", "--channel",
-                                         "rg-nobody", "--wait-limit", "0.5"],
+                                         "rg-nobody", "--wait-limit", "0.5", "--unsecured"],
+    # a real bus is never secured by test keys unasked (issue 39)
+    "play-without-keys": lambda tmp: ["play", "static-obstacle", "--interface", "virtual", "--channel", "rg-nobody"],
+    "run-with-a-missing-key-set": lambda tmp: ["run", "--keys", str(tmp / "no-such-keys"), "--out", str(tmp)],
     "scenario-unknown-key": lambda tmp: ["run", "--scenario", str(_bad_scenario(tmp)), "--out", str(tmp)],
 }
 

@@ -187,7 +187,7 @@ def test_run_text_output_lists_the_files_it_wrote(tmp_path):
 
 
 def test_monitor_only_run_explains_its_start_up_emergencies(tmp_path):
-    res = cli("run", "--interface", "virtual", "--channel", "rg-shell-test", "--no-player", "--duration", "1",
+    res = cli("run", "--interface", "virtual", "--channel", "rg-shell-test", "--no-player", "--duration", "1", "--unsecured",
               "--json", "--no-plot", "--out", tmp_path)
     assert res.returncode == 0, res.stderr
     s = json.loads(res.stdout)

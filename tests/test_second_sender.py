@@ -152,7 +152,8 @@ def cli_runs(tmp_path_factory):
     for name in ATTACKS:
         for table in ("m1", "m2"):
             d = tmp_path_factory.mktemp(f"{name}-{table}")
-            p = subprocess.run([exe, "run", "--scenario", name, "--table", table, "--json", "--no-plot", "--out", str(d)],
+            p = subprocess.run([exe, "run", "--scenario", name, "--table", table, "--json", "--no-plot", "--out", str(d),
+                                "--unsecured"],         # the unsecured bus: the rule is its only defence
                                capture_output=True, text=True, timeout=300)
             assert p.returncode == 0, p.stderr[-800:]
             out[name, table] = (json.loads(p.stdout), d / f"run-{name}.log")

@@ -27,7 +27,7 @@ for f in "$@"; do
     echo $bus > "$dir/bus"
     candump -n 1 $bus,010:7FF > "$dir/first.txt" 2> /dev/null &
     echo $! > "$dir/candump.pid"
-    railguard run --interface socketcan --channel $bus --no-player --json --quiet --no-plot --duration 60 \
+    railguard run --interface socketcan --channel $bus --no-player --unsecured --json --quiet --no-plot --duration 60 \
         --out "$dir" > "$dir/monitor.json" 2> "$dir/monitor.err" &
     echo $! > "$dir/monitor.pid"
     i=$((i + 1))

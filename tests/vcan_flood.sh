@@ -8,7 +8,7 @@
 #   FLOOD_S    seconds per flood (default 3), CALM_S calm seconds before and after (default 2)
 #   KINDS      floods to run, space separated (default "random channel0 mix foreign")
 #
-# The monitor runs `python -m railguard run --interface socketcan --channel vcan0 --no-player
+# The monitor runs `python -m railguard run --interface socketcan --channel vcan0 --no-player --unsecured
 # --table m1 --duration D --json --no-plot --quiet --out OUT_DIR` and is ended by SIGTERM.
 # Writes OUT_DIR/bd.log (candump -L, kernel filter: ID 010 and the heartbeat 7FF), monitor.json,
 # monitor.err, started.txt (first BrakeDemand seen), floods.txt (one line per flood: kind t0 t1
@@ -55,7 +55,7 @@ cangen vcan0 -g 10 -i -I 7FF -L 8 -D 5A5A5A5A5A5A5A5A 2> "$OUT/heartbeat.err" &
 HB=$!
 canplayer -l i -I "$FEED" > /dev/null 2> "$OUT/canplayer.err" &
 CP=$!
-python -m railguard run --interface socketcan --channel vcan0 --no-player --table m1 --duration "$DURATION" \
+python -m railguard run --interface socketcan --channel vcan0 --no-player --unsecured --table m1 --duration "$DURATION" \
     --json --no-plot --quiet --out "$OUT" > "$OUT/monitor.json" 2> "$OUT/monitor.err" &
 MON=$!
 

@@ -6,10 +6,10 @@ OUT=$1
 SCEN=$2
 candump -L vcan0 > "$OUT/bus.log" &
 CD=$!
-python -m railguard run --interface socketcan --channel vcan0 --no-player --table m1 --duration 90 \
+python -m railguard run --interface socketcan --channel vcan0 --no-player --unsecured --table m1 --duration 90 \
     --json --no-plot --quiet --out "$OUT" > "$OUT/monitor.json" 2> "$OUT/monitor.err" &
 MON=$!
-python -m railguard play "$SCEN" --interface socketcan --channel vcan0 --json > "$OUT/player.json" 2> "$OUT/player.err"
+python -m railguard play "$SCEN" --interface socketcan --channel vcan0 --unsecured --json > "$OUT/player.json" 2> "$OUT/player.err"
 PLAYER_RC=$?
 kill -TERM $MON
 wait $MON

@@ -5,7 +5,7 @@ import argparse
 
 from .. import options, output
 from ..errors import UserError
-from ..setup import bus_kwargs
+from ..setup import bus_keys, bus_kwargs
 from .scenarios import shipped_help
 
 
@@ -16,6 +16,7 @@ def play(args: argparse.Namespace) -> int:
     from can_bus import scenario as scenarios
     from can_bus.clock import WallClock
     from can_bus.player import Player
+    from can_bus.security import describe
     from can_bus.session import open_bus, play_loop
 
     scen = scenarios.load(args.scenario)
@@ -23,12 +24,20 @@ def play(args: argparse.Namespace) -> int:
     if bus_cfg is None:
         raise UserError("play needs a real bus: give --interface and --channel (e.g. --interface socketcan "
                         "--channel vcan0); on the in-process bus use `railguard run`, which plays with the monitor")
+    keys = bus_keys(args, real_bus=True)
+    security = None
+    if keys is not None:
+        from can_bus.keys import SENDERS
+        from can_bus.security import for_node
+
+        security = for_node(keys, "player", SENDERS)   # sensors' and train's keys; the monitor's for the brake side
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     opened = [open_bus(bus_cfg)]
     try:
         player = Player(opened[0], scen, args.period, wait_for_monitor=not args.no_wait)
+        player.secure(security)
         if player.wants_hostile:                 # the hostile faults: a second node, its own connection
             opened.append(open_bus(bus_cfg))
             player.join_hostile(opened[-1])
@@ -36,7 +45,9 @@ def play(args: argparse.Namespace) -> int:
     finally:
         for bus in opened:
             bus.shutdown()
-    summary = dict(player.outcome(), scenario=scen.name, frames_sent=player.frames_sent, late_periods=player.late_periods,
+        if security is not None:
+            security.save()
+    summary = dict(player.outcome(), scenario=scen.name, bus_security=describe(security), frames_sent=player.frames_sent, late_periods=player.late_periods,
                    faults_injected=sorted(f"{k}@ch{c}" for k, c in player.faults_injected))
     output.summary(summary, args.json)
     return 0
@@ -57,6 +68,7 @@ def register(sub) -> None:
     )
     pl.add_argument("scenario", metavar="SCENARIO", help="a shipped scenario name or a .toml file")
     options.add_bus(pl, real_only=True)
+    options.add_security(pl, simulated=False)
     pl.add_argument("--period", type=options.positive_int, default=100, metavar="MS",
                     help="send period in ms (default: %(default)s)")
     pl.add_argument("--no-wait", action="store_true", help="start at once, do not wait for the monitor")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from .. import options, output
-from ..setup import monitor_setup
+from ..setup import bus_keys, monitor_setup
 
 
 HEADER = "    time  demand     mode       node  voted distance  track                   reasons"
@@ -66,8 +66,11 @@ def _stats_lines(stats: dict, args: argparse.Namespace, first, last) -> None:
     span = 0.0 if first is None else (last.tick - first.tick) / 1000
     print(f"{stats['cycles']} cycles over {span:.1f} s; frames {stats['frames']}, "
           f"accepted {stats['accepted']}, rejected {sum(stats['rejected'].values())}, filtered {stats['filtered']}")
+    print(f"bus: {stats['bus_security']}")
     if stats["rejected"]:
         print("rejected: " + ", ".join(f"{k} {v}" for k, v in stats["rejected"].items()))
+    if stats.get("note"):
+        print(f"note: {stats['note']}")
     if stats["bus_events"]:
         print("bus state: " + ", ".join(f"{k} {v}" for k, v in stats["bus_events"].items())
               + f" (last: {stats['bus_state']})")
@@ -96,7 +99,8 @@ def replay(args: argparse.Namespace) -> int:
     setup = monitor_setup(args)
     # read the log once before replaying: a bad line stops with exit 2 before any output
     rp.check(args.file, max_gap_s=args.max_gap, on_time_error=args.on_time_error)
-    replayer = rp.Replay(setup, max_gap_s=args.max_gap, on_time_error=args.on_time_error, source=args.file)
+    keys = None if args.keys is None else bus_keys(args, real_bus=True)
+    replayer = rp.Replay(setup, max_gap_s=args.max_gap, on_time_error=args.on_time_error, source=args.file, keys=keys)
     thinned = rp.Thinned()
     first = last = None
     changes = shown = 0
@@ -144,6 +148,12 @@ def register(sub) -> None:
                     "decisions.",
     )
     rp.add_argument("file", metavar="FILE", help="a CAN log file")
+    g = rp.add_mutually_exclusive_group()
+    g.add_argument("--keys", metavar="DIR", help="the key set of a log recorded on a secured bus (for a run on the "
+                                                 "in-process bus: OUT/test-keys): every frame is verified as live "
+                                                 "(default: unsecured)")
+    g.add_argument("--unsecured", action="store_true", help="read the log as an unsecured bus, E2E only (the "
+                                                            "default; old logs; the output says so)")
     options.add_monitor(rp)
     options.add_out(rp, what="folder for the plot")
     rp.add_argument("--no-plot", action="store_true", help="do not draw the plot")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .. import options, output
 from ..errors import UserError
-from ..setup import bus_kwargs, monitor_setup
+from ..setup import bus_keys, bus_kwargs, monitor_setup
 from .scenarios import shipped_help
 
 
@@ -21,13 +21,16 @@ def run(args: argparse.Namespace) -> int:
     bus = bus_kwargs(args)
     out = Path(args.out)
     show = output.status_printer(args.json or args.quiet)
+    if bus is None and scen is None:
+        raise UserError("--no-player needs a real bus (--interface/--channel): on the in-process bus nothing would send")
+    keys = bus_keys(args, bus is not None, out)
     if bus is None:
-        if scen is None:
-            raise UserError("--no-player needs a real bus (--interface/--channel): on the in-process bus nothing would send")
-        result = session.run_virtual(setup, scen, out, show=show, plot=not args.no_plot, duration_s=args.duration)
+        result = session.run_virtual(setup, scen, out, show=show, plot=not args.no_plot, duration_s=args.duration,
+                                     keys=keys)
     else:
         result = session.run_on_bus(setup, bus, out, scenario=scen, duration_s=args.duration, show=show,
-                                    plot=not args.no_plot, name=scen.name if scen else str(bus.get("channel")))
+                                    plot=not args.no_plot, name=scen.name if scen else str(bus.get("channel")),
+                                    keys=keys)
     summary = result.summary
     output.summary(summary, args.json, show is not None and sys.stderr.isatty())
     if not args.json:
@@ -49,6 +52,7 @@ def register(sub) -> None:
     )
     options.add_monitor(r)
     options.add_bus(r)
+    options.add_security(r)
     r.add_argument("--scenario", default="static-obstacle", metavar="NAME|FILE.toml",
                    help="scenario for the player: a shipped one (listed below) or a TOML file (default: %(default)s)")
     r.add_argument("--no-player", action="store_true", help="monitor only (a real bus where others send)")

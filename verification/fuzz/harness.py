@@ -330,6 +330,8 @@ class Harness:
         want = (out.risk_category, out.risk_score, -(-out.r1_ppm // 1000), -(-out.r2_ppm // 1000), out.table_risk_ppm)
         if (rk["RiskCategory"], rk["RiskScore"], rk["R1"], rk["R2"], rk["TableRisk"]) != want:
             return f"sent MonitorRisk {rk} for the core's risk {want}"
+        if rk["Unsecured"] != int(self.runner.security is None):      # (the fuzzed bus is unsecured)
+            return f"sent MonitorRisk Unsecured {rk['Unsecured']} on a bus secured: {self.runner.security is not None}"
         return ""
 
     def _core_problem(self, before, s, out) -> str:

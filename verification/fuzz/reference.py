@@ -49,7 +49,8 @@ LAYOUT = {
     MONITOR_TRACK: _E2E + (("TrackState", 12, 3, False, 0, 5), ("Memory", 15, 1, False, 0, 1),
                            ("TrackDistance", 16, 16, False, 0, 65535),   # [0|6553.5] m at 0.1 m, 65535 no_track
                            ("TrackAge", 32, 16, False, 0, 65535)),       # [0|6553.5] s at 0.1 s
-    MONITOR_RISK: _E2E + (("RiskCategory", 12, 3, False, 1, 4), ("RiskScore", 16, 5, False, 0, 20),
+    MONITOR_RISK: _E2E + (("RiskCategory", 12, 3, False, 1, 4), ("Unsecured", 15, 1, False, 0, 1),
+                          ("RiskScore", 16, 5, False, 0, 20),
                           ("R1", 21, 10, False, 0, 500),                # [0|50] % at 0.1 %
                           ("R2", 31, 11, False, 0, 1000),               # [0|100] % at 0.1 %
                           ("TableRisk", 42, 20, False, 0, 1000000)),    # ppm
