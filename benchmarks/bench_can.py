@@ -125,11 +125,7 @@ def latency(trials: int, channel: str, seed: int = 1, secured: bool = False) -> 
     verified (a test key set in a temporary folder, its freshness state written as it goes)."""
     mon_sec = player_sec = None
     if secured:
-        from can_bus.keys import SENDERS
-        from can_bus.security import for_node, made_test_keys
-
-        folder = made_test_keys(Path(tempfile.mkdtemp()) / "keys")
-        mon_sec, player_sec = for_node(folder, "monitor", SENDERS), for_node(folder, "bench", SENDERS)
+        mon_sec, player_sec = secured_pair()
     mon = can.Bus(interface="virtual", channel=channel)
     tx = can.Bus(interface="virtual", channel=channel)
     listen = can.Bus(interface="virtual", channel=channel)
@@ -190,7 +186,7 @@ FLOOD_SCRIPT = ROOT / "tests" / "vcan_flood.sh"
 MONITOR_QUEUE = 2048             # frames the monitor's in-process connection holds, as a socket buffer would
 SPOOF_CYCLE = 0xFFFFFFF0         # the foreign sender's cycle number: the monitor never gets there
 CALM_RATE = 70                   # frames/s of valid input traffic (six channels and TrainState at 10 Hz)
-INPROCESS_KINDS = ("random", "channel0", "foreign")
+INPROCESS_KINDS = ("random", "channel0", "foreign", "bad_mac")   # bad_mac: against a secured monitor
 VCAN_KINDS = ("random", "channel0", "mix", "foreign")
 
 
@@ -205,12 +201,24 @@ def spoof_payload() -> bytes:
 
 
 def calm_frames(sender: Sender) -> list[can.Message]:
-    """One period of valid input traffic: TrainState at standstill, six clear channels."""
-    msgs = [can.Message(arbitration_id=TRAIN_STATE_ID, data=sender.frame(TRAIN_STATE_ID, {"Speed": 0}), is_extended_id=False)]
+    """One period of valid input traffic: TrainState at standstill, six clear channels (secured
+    CAN FD frames if the sender has a Security)."""
+    fd = sender.security is not None
+    msgs = [can.Message(arbitration_id=TRAIN_STATE_ID, data=sender.frame(TRAIN_STATE_ID, {"Speed": 0}),
+                        is_extended_id=False, is_fd=fd)]
     for ch, fid in enumerate(OBSTACLE_IDS):
-        msgs.append(can.Message(arbitration_id=fid, is_extended_id=False,
+        msgs.append(can.Message(arbitration_id=fid, is_extended_id=False, is_fd=fd,
                                 data=sender.frame(fid, report_signals(Report(ABSENT, 0, 0, 0, 0), ch))))
     return msgs
+
+
+def secured_pair():
+    """(monitor's, feeder's) Security on a fresh test key set in a temporary folder."""
+    from can_bus.keys import SENDERS
+    from can_bus.security import for_node, made_test_keys
+
+    folder = made_test_keys(Path(tempfile.mkdtemp()) / "keys")
+    return for_node(folder, "monitor", SENDERS), for_node(folder, "bench", SENDERS)
 
 
 def flood_frames(kind: str, rng: random.Random, n: int = 4096) -> list[can.Message]:
@@ -222,6 +230,10 @@ def flood_frames(kind: str, rng: random.Random, n: int = 4096) -> list[can.Messa
                 for _ in range(n)]
     if kind == "foreign":
         return [can.Message(arbitration_id=BRAKE_DEMAND_ID, is_extended_id=False, data=spoof_payload())]
+    if kind == "bad_mac":   # secured frames on channel 0 whose freshness is new (so each costs a CMAC), keyless
+        return [can.Message(arbitration_id=OBSTACLE_IDS[0], is_extended_id=False, is_fd=True,
+                            data=rng.randbytes(8) + (i % 65536).to_bytes(4, "little") + rng.randbytes(8))
+                for i in range(n)]
     raise ValueError(kind)
 
 
@@ -252,7 +264,8 @@ def flood_inprocess(kind: str, seconds: float, threads: int, calm: float = 1.0, 
     listen = can.Bus(interface="virtual", channel=channel)                  # unbounded: misses nothing
     feed_bus = send_only_bus(channel)
     flood_buses = [send_only_bus(channel) for _ in range(threads)]
-    runner = MonitorRunner(mon, setup(), WallClock())
+    mon_sec, feed_sec = secured_pair() if kind == "bad_mac" else (None, None)
+    runner = MonitorRunner(mon, setup(), WallClock(), security=mon_sec)
     spoof = spoof_payload()
     stop, stop_flood = threading.Event(), threading.Event()
     demands: list[tuple[float, int]] = []
@@ -265,7 +278,7 @@ def flood_inprocess(kind: str, seconds: float, threads: int, calm: float = 1.0, 
             pass
 
     def feeder() -> None:
-        sender = Sender()
+        sender = Sender(feed_sec)
         nxt = time.monotonic()
         while not stop.is_set():
             for msg in calm_frames(sender):
@@ -280,7 +293,7 @@ def flood_inprocess(kind: str, seconds: float, threads: int, calm: float = 1.0, 
                 if stop.is_set():
                     return
                 continue
-            if msg.arbitration_id == BRAKE_DEMAND_ID and len(msg.data) == 8 and bytes(msg.data) != spoof:
+            if msg.arbitration_id == BRAKE_DEMAND_ID and len(msg.data) in (8, 20) and bytes(msg.data) != spoof:
                 demands.append((msg.timestamp, (msg.data[1] >> 4) & 0x3))
 
     def flooder(i: int) -> None:
@@ -396,6 +409,9 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=100, help="latency trials")
     ap.add_argument("--flood", action="store_true", help="floods on the in-process virtual bus (instead of the default sections)")
     ap.add_argument("--vcan", action="store_true", help="floods with cangen on a real vcan0 in the sandbox (instead of the default sections)")
+    ap.add_argument("--flood-kinds", nargs="+", choices=INPROCESS_KINDS, default=list(INPROCESS_KINDS), metavar="KIND",
+                    help=f"which in-process floods (--flood): {', '.join(INPROCESS_KINDS)} (default: all; bad_mac: "
+                         "keyless secured frames with new freshness values against a secured monitor)")
     ap.add_argument("--flood-seconds", type=float, default=4.0, help="duration per flood")
     ap.add_argument("--flood-threads", type=int, default=2, help="flood threads (--flood)")
     ap.add_argument("--latency-only", action="store_true",
@@ -416,7 +432,7 @@ def main() -> None:
     if args.flood or args.vcan:
         result = {}
         if args.flood:
-            result["flood"] = [flood_inprocess(k, args.flood_seconds, args.flood_threads) for k in INPROCESS_KINDS]
+            result["flood"] = [flood_inprocess(k, args.flood_seconds, args.flood_threads) for k in args.flood_kinds]
         if args.vcan:
             result["vcan"] = [flood_vcan(k, args.flood_seconds) for k in VCAN_KINDS]
         if args.json:

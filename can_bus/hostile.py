@@ -13,8 +13,10 @@ receives it.
 
 On a secured bus (`secured=True`) the node knows the profile but holds no owner's key: it
 sends secured CAN FD frames with the freshness value after the newest it saw on the ID and an
-authenticator under a key of its own (`key`; give it one sensor's key to try that key on
-another channel's ID), and its replays are the secured frames byte for byte.
+authenticator under a key of its own (`key`), and its replays are the secured frames byte for
+byte. `forge_absent_stolen_key` is `forge_absent` by a node that holds channel 0's sensor key
+(a sensor node taken over): its frames on the other channels' IDs carry a real sensor's
+authenticator, under the wrong key.
 """
 from __future__ import annotations
 
@@ -29,7 +31,8 @@ from . import secoc
 from .codec import BRAKE_DEMAND_ID, OBSTACLE_IDS, encode, report_signals
 from .keys import KEY_BYTES
 
-HOSTILE_KINDS = ("forge_absent", "forge_brake_none", "replay_absent", "replay_brake_none")
+HOSTILE_KINDS = ("forge_absent", "forge_brake_none", "replay_absent", "replay_brake_none", "forge_absent_stolen_key")
+STOLEN_KEY_OF = "ch0"          # forge_absent_stolen_key: the node holds channel 0's sensor key
 
 
 @dataclass
@@ -87,9 +90,9 @@ class Hostile:
         except can.CanError:
             pass
 
-    def forge_absent(self, ch: int, genuine_next_counter: int) -> None:
+    def forge_absent(self, ch: int, genuine_next_counter: int, kind: str = "forge_absent") -> None:
         fid = OBSTACLE_IDS[ch]
-        self._send("forge_absent", fid,
+        self._send(kind, fid,
                    self._forged(fid, encode(fid, report_signals(Report(ABSENT, 0, 0, 0, 0), ch), genuine_next_counter)))
 
     def forge_brake_none(self) -> None:

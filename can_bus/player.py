@@ -26,7 +26,7 @@ from monitor.core.types import ABSENT, PRESENT, Report, Train
 from .brake_receiver import BrakeReceiver
 from .codec import (BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Receiver, Sender, report_signals,
                     train_signals)
-from .hostile import HOSTILE_KINDS, Hostile
+from .hostile import HOSTILE_KINDS, STOLEN_KEY_OF, Hostile
 from .scenario import CHANNEL_FREE_KINDS, OBSTACLE_TYPES, Scenario
 
 STALE_REPORT_PERIODS = 10
@@ -88,6 +88,8 @@ class Player:
     def join_hostile(self, bus: can.BusABC) -> None:
         """Play the scenario's hostile faults as a second node on its own connection `bus`."""
         self.hostile = Hostile(bus, secured=self.security is not None)
+        if self.security is not None and any(f.kind == "forge_absent_stolen_key" for f in self.scenario.faults):
+            self.hostile.key = self.security.keyset.keys[STOLEN_KEY_OF]       # a sensor node taken over
 
     # ------------------------------------------------------------------ world
     def obstacle_distance(self, ch: Optional[int] = None) -> Optional[tuple[float, object]]:
@@ -184,6 +186,8 @@ class Player:
             fid = OBSTACLE_IDS[ch]
             if self.hostile is not None and self.active("forge_absent", ch):
                 self.hostile.forge_absent(ch, self.sender.counters.get(fid, -1) + 1)
+            if self.hostile is not None and self.active("forge_absent_stolen_key", ch):
+                self.hostile.forge_absent(ch, self.sender.counters.get(fid, -1) + 1, "forge_absent_stolen_key")
             if self.hostile is not None and self.active("replay_absent", ch):
                 self.hostile.replay("replay_absent", fid, self.sender.counters.get(fid, -1) + 1)
             for _ in range(self.fault_rate(ch)):

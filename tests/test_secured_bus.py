@@ -156,14 +156,15 @@ def test_a_classical_frame_on_a_secured_bus_is_refused_as_such(tmp_path):
 HOSTILE = {"hostile-forged-absent": ("rejects", "bad_mac"),
            "hostile-forged-brake-none": ("brake_receiver", "second_sender"),
            "hostile-replay-absent": ("rejects", "stale_freshness"),
-           "hostile-replay-brake-none": ("hostile_frames", "replay_brake_none")}
+           "hostile-replay-brake-none": ("hostile_frames", "replay_brake_none"),
+           "hostile-stolen-key": ("rejects", "bad_mac")}     # channel 0's key on channels 1-5
 
 
 @pytest.mark.parametrize("name", sorted(HOSTILE))
 def test_every_hostile_node_fails_on_a_secured_bus(name, tmp_path):
     """The four attacks of issue 39 (forged absent on every channel in step, forged BrakeDemand
-    none, their replays) on the secured bus: the train stops and the summary names the
-    refusal. (A forged frame is refused for its authenticator, a replayed one for its
+    none, their replays) and a sensor's key used on the other channels, on the secured bus:
+    the train stops and the summary names the refusal. (A forged frame is refused for its authenticator, a replayed one for its
     freshness; the brake receiver brakes on a forger's frames.)"""
     where, what = HOSTILE[name]
     r = session.run_virtual(SETUP, scenarios.load(name), tmp_path / "out", plot=False, keys=made_test_keys(tmp_path / "k"))
@@ -210,3 +211,46 @@ def test_a_reordered_or_corrupted_secured_frame_is_refused(tmp_path):
         assert monitor.open(fid, bytes(bad))[0] in ("bad_mac", "stale_freshness"), byte
     assert monitor.open(OBSTACLE_IDS[5], fresh)[0] == "bad_mac"          # the same bytes on another ID
     assert monitor.open(fid, fresh)[0] == "ok"
+
+
+def test_an_earlier_session_s_frames_replayed_live_are_refused_and_the_train_stops(tmp_path):
+    """Issue 39 item 4: a hostile node holding a recording of an earlier session (the same key
+    set, so every authenticator in it is genuine) sends its "absent" reports back in the next
+    session, each when its counter value is due: every one is refused for its freshness (the
+    monitor's windows persisted), the genuine reports are taken, the train stops."""
+    from can_bus.player import Player
+
+    folder = made_test_keys(tmp_path / "keys")
+    first = session.run_virtual(SETUP, scenarios.load("static-obstacle"), tmp_path / "a", plot=False, keys=folder)
+    recorded = [f.msg for f in logfile.read(first.summary["log"])]
+
+    class Recorded(Player):
+        def join_hostile(self, bus):
+            super().join_hostile(bus)
+            for msg in recorded:              # the earlier session's frames come first in its memory
+                self.hostile.sniff(msg)
+
+    second = session.run_virtual(SETUP, scenarios.load("hostile-replay-absent"), tmp_path / "b", plot=False,
+                                 keys=folder, player=Recorded)
+    s = second.summary
+    assert s["hostile_frames"]["replay_absent"] > 1000, s["hostile_frames"]
+    assert s["rejects"].get("stale_freshness", 0) >= s["hostile_frames"]["replay_absent"] - 12, s["rejects"]
+    assert s["outcome"] == "stopped" and "bad_mac" not in s["rejects"], s
+
+
+@pytest.mark.parametrize("name", ["hostile-forged-absent", "hostile-forged-brake-none"])
+def test_a_secured_attack_log_replays_to_the_same_decisions(name, tmp_path):
+    """Replayed with its key set, the log of an attack on the secured bus gives the live
+    decisions and names the refusals (issue 39 acceptance: live and in replay)."""
+    from can_bus.replay import Replay
+
+    folder = made_test_keys(tmp_path / "keys")
+    live = session.run_virtual(SETUP, scenarios.load(name), tmp_path / "out", plot=False, keys=folder)
+    rp = Replay(SETUP, keys=folder, source=name)
+    decisions = list(rp.run(logfile.read(live.summary["log"])))
+    stats = rp.stats.as_dict()
+    assert decisions and stats["agreement_with_recorded"] > 0.99, stats
+    if name == "hostile-forged-absent":
+        assert stats["rejected"]["bad_mac"] == live.summary["rejects"]["bad_mac"]
+    else:
+        assert stats["brake_receiver"].get("second_sender", 0) > 0, stats

@@ -8,7 +8,7 @@ from __future__ import annotations
 import os
 import tempfile
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Optional
 
@@ -36,10 +36,16 @@ class BusSpec:
     seed: int = 1
     detection: bool = False  # a run whose faults are placed so that each must be detected
     duration_s: Optional[float] = None
+    secured: bool = False    # on the secured bus (issue 39: a test key set; the hostile node holds no key)
 
     @property
     def kinds(self) -> tuple:
         return tuple(f.kind for f in self.faults)
+
+
+def secured_kind(kind: str) -> str:
+    """A fault kind's name for its detection on the secured bus."""
+    return f"{kind} (secured bus)"
 
 
 def bus_scenario(spec: BusSpec, cfg: Optional[Config] = None, world: Optional[WorldTrain] = None):
@@ -81,6 +87,8 @@ def bus_plan(quick: bool) -> list[BusSpec]:
                          tuple(Fault("forge_absent", ch, 1.0, 1e9) for ch in range(6)), "m2", 40, True, 30.0))
     specs.append(BusSpec("bus-forge_brake_none-detect", "static-700m-30", (Fault("forge_brake_none", 0, 1.0, 1e9),),
                          "m1", 41, True, 30.0))     # 30 s: without the defence the train reaches the obstacle
+    for spec in specs[-2:]:                         # the same two attacks on the secured bus
+        specs.append(replace(spec, name=spec.name.replace("-detect", "-secured-detect"), secured=True))
     for t in TABLE_KINDS:
         specs.append(BusSpec(f"bus-{t}", "static-300m-20", (Fault(t, -1, 0.0, 0.0, ("flip", 0.5) if t == "table_corrupted"
                                                                  else ("expect_model",)),), "m1", 1, True, 5.0))
@@ -137,6 +145,7 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
     from can_bus.clock import SimClock
     from can_bus.player import Player
     from can_bus.runner import MonitorRunner
+    from can_bus.security import made_test_keys
 
     out = {"name": spec.name, "kinds": spec.kinds, "scenario": spec.scenario, "model": spec.model,
            "detection_run": spec.detection, "crash": None, "unsafe": 0, "collision": False, "false_braking": False,
@@ -168,7 +177,8 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
         overrun = [f for f in spec.faults if f.kind == "deadline_overrun"]
         with tempfile.TemporaryDirectory(prefix="railguard-campaign-") as tmp:
             if not overrun:
-                res = session.run_virtual(setup, scen, Path(tmp), plot=False)
+                keys = made_test_keys(Path(tmp) / "keys") if spec.secured else None
+                res = session.run_virtual(setup, scen, Path(tmp), plot=False, keys=keys)
                 runner, player = res.runner, res.player
             else:
                 clock = SimClock()
@@ -201,7 +211,8 @@ def bus_run(spec: BusSpec, config: Optional[Config] = None, world: Optional[Worl
         out["rejects"] = dict(runner.receiver.rejected)
         out["deadline_misses"] = runner.deadline_misses
         out["faults_injected"] = sorted(f"{k}@ch{c}" for k, c in player.faults_injected)
-        out["detected"] = bus_detection(spec.faults, runner.records, runner.receiver.rejected, player.brakes.causes)
+        detected = bus_detection(spec.faults, runner.records, runner.receiver.rejected, player.brakes.causes)
+        out["detected"] = {secured_kind(k) if spec.secured else k: v for k, v in detected.items()}
         problems = []
         if counter[0]:
             problems.append(f"{counter[0]} exception(s) inside the core")

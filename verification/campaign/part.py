@@ -19,6 +19,7 @@ from ..report import Check, Progress, Section
 from ..scale import Cluster
 from ..world_train import WorldTrain
 from .catalogue import CATALOGUE, HOSTILE, HOSTILE_KINDS, KINDS, PLAYER_KINDS, TABLE_KINDS
+from .bus import secured_kind
 from .figures import heatmap
 from .report import markdown, pct
 from .sandbox import vcan_guest
@@ -96,6 +97,10 @@ def checks(summary: dict) -> list[Check]:
         for k in HOSTILE_KINDS:                   # (their runs are safe by the sample's check above)
             out.append(Check(f"campaign: virtual bus: a hostile node, {HOSTILE[k].label}, detected ({HOSTILE[k].short})",
                              bool(b["detected"].get(k)), "detected" if b["detected"].get(k) else "not detected"))
+            sk = secured_kind(k)                  # the same attack on the secured bus (issue 39), keyless
+            out.append(Check(f"campaign: secured virtual bus: a keyless hostile node, {HOSTILE[k].label}, detected "
+                             f"({HOSTILE[k].short}; its frames fail the authenticator)",
+                             bool(b["detected"].get(sk)), "detected" if b["detected"].get(sk) else "not detected"))
     if "vcan" in summary:
         v = summary["vcan"]
         need = 1 if quick else 5

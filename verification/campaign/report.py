@@ -183,7 +183,9 @@ def markdown(summary: dict, figure: Optional[str]) -> str:
                   "runs named `-detect` place each fault while the train approaches a static obstacle in sight and must "
                   "show its diagnostic. Two of them put a hostile node on the bus (issue 39, `can_bus/hostile.py`): "
                   + "; ".join(f"`{k}`: {HOSTILE[k].injection}, seen as {HOSTILE[k].diagnostic}" for k in HOSTILE_KINDS)
-                  + " (without the second-sender rule both collide). Frames rejected by reason: "
+                  + " (without the second-sender rule both collide); the `-secured-detect` runs play the same two "
+                  "attacks on the secured bus (a test key set; the hostile node holds no key): its frames fail the "
+                  "authenticator (`bad_mac`), the ID is quarantined as a second sender. Frames rejected by reason: "
                   + (", ".join(f"{k} {v:,}" for k, v in sorted(b["frames_rejected"].items())) or "none") + ".\n",
                   md_table(["run", "scenario", "table", "outcome", "unsafe", "crash", "detected"],
                            [[r["name"], r.get("scenario", ""), r.get("model", ""), r.get("outcome", ""), r.get("unsafe", 0),
