@@ -275,8 +275,34 @@ def test_planted_bug_crc_check_skipped_is_caught(monkeypatch):
     # the recorded stream replays to the same fault at the same frame
     stats = fuzz.Stats()
     fuzz.run_stream(ex["table"], ex["topology"], ex["profile"], bytes.fromhex(ex["tape"]), stats,
-                    budget=fuzz.STREAM_FRAMES)
+                    budget=fuzz.STREAM_FRAMES, secured=ex["bus"] == "secured")
     assert stats.examples[0]["frame"] == ex["frame"] and stats.examples[0]["frame_index"] == ex["frame_index"]
+
+
+def test_planted_bad_mac_without_quarantine_is_caught(monkeypatch):
+    """Issue 39, the secured streams: a frame that fails its authenticator refused, but the
+    ID not quarantined (its report kept, the next genuine frame taken)."""
+    monkeypatch.setattr(Receiver, "_contest", lambda self, frame_id, state, tick: None)
+    r = planted_run()
+    assert r["violations"] > 0
+    assert any(e["bus"] == "secured" for e in r["examples"] if e["kind"] in ("reason", "latched"))
+
+
+def test_planted_freshness_window_skipped_is_caught(monkeypatch):
+    """Issue 39: a receiver that takes any freshness value (no window): a replayed secured
+    frame is then judged by its authenticator, which fails, instead of refused as stale."""
+    from can_bus import secoc
+
+    monkeypatch.setattr(secoc, "WINDOW", 1 << 70)
+    r = planted_run()
+    assert any(e["kind"] == "reason" and e["expected"] == "stale_freshness" for e in r["examples"]), r["examples"][:2]
+
+
+def test_the_secured_streams_reach_every_refusal_of_the_secured_bus():
+    r = fuzz.run(6000, quiet, seed=5, workers=1)
+    assert r["violations"] == 0 and r["exceptions"] == 0 and r["reference_agrees"]
+    assert all(r["rejected"].get(k, 0) > 0 for k in ("bad_mac", "stale_freshness", "classical_frame")), r["rejected"]
+    assert any(k.endswith("/secured") for k in r["stream_kinds"]) and any(k.endswith("/unsecured") for k in r["stream_kinds"])
 
 
 def test_planted_crc_before_rate_policing_is_caught(monkeypatch):

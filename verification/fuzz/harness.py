@@ -26,9 +26,8 @@ from monitor.core.types import (
 )
 
 from .reference import (
-    ACCEPTED, BRAKE_DEMAND, FILTERED, LAYOUT, MONITOR_RISK, MONITOR_STATUS, MONITOR_TRACK, OUTPUTS, UNUSED,
-    ReferenceReceiver,
-    e2e_crc, unpack,
+    ACCEPTED, BRAKE_DEMAND, FILTERED, FRESHNESS_LOW_BYTES, LAYOUT, MONITOR_RISK, MONITOR_STATUS, MONITOR_TRACK,
+    OUTPUTS, OWNER_OF, SECURED_BYTES, UNUSED, ReferenceReceiver, authenticator, e2e_crc, unpack,
 )
 from .stats import Stats, describe
 
@@ -58,6 +57,24 @@ class FrontDoorBus(can.BusABC):
 
 
 @lru_cache(maxsize=None)
+def fuzz_keys() -> dict:
+    """The fuzzed secured bus's keys, one per sender, fixed (a stream replays from its tape)."""
+    import hashlib
+
+    return {owner: hashlib.sha256(b"railguard fuzz test key " + owner.encode()).digest()[:16]
+            for owner in sorted(set(OWNER_OF.values()))}
+
+
+def fuzz_security(keys: dict, node: str):
+    """A can_bus Security holding `keys` in memory (the shell under test, not the reference)."""
+    from pathlib import Path
+
+    from can_bus.keys import KeySet
+    from can_bus.security import Security
+
+    return Security(KeySet(Path("fuzz-test-keys"), dict(keys), True, {}), node, state=False)
+
+
 def setup_for(table: str, topology: str) -> core.Setup:
     return core.create(Config(topology=topology), tables.read(table))
 
@@ -77,21 +94,27 @@ class Harness:
     and checks. Both raise StreamStop after recording an exception or a violation.
     """
 
-    def __init__(self, setup: core.Setup, stats: Stats, budget: Optional[int] = None, label: Optional[dict] = None):
+    def __init__(self, setup: core.Setup, stats: Stats, budget: Optional[int] = None, label: Optional[dict] = None,
+                 secured: bool = False):
         self.setup = setup
         self.stats = stats
         self.budget = budget
         self.label = label or {}
         self.clock = SimClock()
         self.bus = FrontDoorBus()
-        self.runner = MonitorRunner(self.bus, setup, self.clock)
+        # a secured bus (issue 39): the runner holds every key; `sealer` signs the traffic's frames
+        self.keys = fuzz_keys() if secured else None
+        self.sealer = None if self.keys is None else fuzz_security(self.keys, "fuzz-senders")
+        self.runner = MonitorRunner(self.bus, setup, self.clock,
+                                    security=None if self.keys is None else fuzz_security(self.keys, "fuzz-monitor"))
         self.rx = self.runner.receiver
         self.tally = self.runner.monitor.tally
         cfg = setup.config
         self.channels = cfg.channels
         self.modules = cfg.modules
         self.period = cfg.period_ms
-        self.model = ReferenceReceiver(cfg.channels, cfg.period_ms)
+        self.model = ReferenceReceiver(cfg.channels, cfg.period_ms, self.keys)
+        self._out_freshness: dict = {}      # output ID -> the freshness value of the last secured frame sent
         self.n_nodes = setup.table.nodes
         self.n_obs = len(setup.table.observations)
         self.all_seen = (1 << cfg.channels) - 1
@@ -268,6 +291,21 @@ class Harness:
         self.stats.foreign_cycles += foreign
         return out
 
+    def _secured_sent(self, fid: int, m: can.Message) -> tuple:
+        """(bytes 0..7, "") of a frame the monitor sent on a secured bus, or (b"", the problem): a
+        CAN FD frame of 20 bytes, its freshness value one on from the last on the ID (from 0),
+        its authenticator right under the monitor's key (the reference's own CMAC)."""
+        data = bytes(m.data)
+        if not m.is_fd or len(data) != SECURED_BYTES:
+            return b"", f"sent frame 0x{fid:02X} {data.hex()} is not a 20-byte secured CAN FD frame"
+        value = self._out_freshness.get(fid, -1) + 1
+        if int.from_bytes(data[8:8 + FRESHNESS_LOW_BYTES], "little") != value & 0xFFFFFFFF:
+            return b"", f"sent frame 0x{fid:02X} carries freshness {data[8:12].hex()}, not {value}"
+        if authenticator(self.keys[OWNER_OF[fid]], fid, data[:8], value) != data[8 + FRESHNESS_LOW_BYTES:]:
+            return b"", f"sent frame 0x{fid:02X} {data.hex()}: its authenticator fails under the monitor's key"
+        self._out_freshness[fid] = value
+        return data[:8], ""
+
     def _record_problem(self, tick: int, rec, out, foreign: bool) -> str:
         """The CycleRecord `cycle()` returned: the cycle's outputs, the TrainState speed the
         core was given (none once older than the timeout) and the ForeignOutput diagnostic."""
@@ -305,6 +343,10 @@ class Harness:
         for fid in OUTPUTS:
             m = bus.last_sent[fid]
             data = bytes(m.data)
+            if self.keys is not None:
+                data, problem = self._secured_sent(fid, m)
+                if problem:
+                    return problem
             if m.is_extended_id or len(data) != 8 or e2e_crc(data, fid) != data[0]:
                 return f"sent frame 0x{fid:02X} {data.hex()} is not a valid 8-byte E2E frame"
             if int.from_bytes(data, "little") & UNUSED[fid]:

@@ -77,7 +77,34 @@ BABBLE_QUARANTINE_MS = 500
 SAME_COUNTER_WINDOW_MS = 500
 SECOND_SENDER_REFUSAL_MS = 1000
 KINDS = ("classical", "extended", "fd", "remote", "error")
-SHELL_REASON = {"fd": "fd_frame", "remote": "remote_frame", "error": "error_frame"}
+SHELL_REASON = {"fd": "fd_frame", "remote": "remote_frame", "error": "error_frame", "classical": "classical_frame"}
+
+# ----------------------------------------------------------------------------- the secured bus (issue 39)
+# docs/can.md, "Authenticated frames": a 20-byte CAN FD frame, bytes 0..7 the classic frame,
+# 8..11 the low 32 bits of the sender's freshness value (little-endian), 12..19 the first 8
+# bytes of AES-CMAC under the ID owner's key over ID (2 bytes, big-endian), bytes 0..7 and the
+# full 64-bit freshness value (big-endian); a value is new if above the newest accepted on the
+# ID by at most 65,536; a failed authenticator refuses the ID as a second sender does.
+SECURED_BYTES, FRESHNESS_LOW_BYTES, AUTHENTICATOR_BYTES = 20, 4, 8
+FRESHNESS_AHEAD = 65536
+OWNER_OF = {**{fid: f"ch{i}" for i, fid in enumerate(OBSTACLES)}, TRAIN_STATE: "train",
+            **{fid: "monitor" for fid in OUTPUTS}}
+
+
+def authenticator(key: bytes, frame_id: int, payload: bytes, freshness: int) -> bytes:
+    from cryptography.hazmat.primitives import cmac
+    from cryptography.hazmat.primitives.ciphers import algorithms
+
+    mac = cmac.CMAC(algorithms.AES(key))
+    mac.update(frame_id.to_bytes(2, "big") + payload + freshness.to_bytes(8, "big"))
+    return mac.finalize()[:AUTHENTICATOR_BYTES]
+
+
+def full_freshness(newest: Optional[int], low: int) -> int:
+    """The smallest freshness value above `newest` (-1 if none yet) whose low 32 bits are `low`."""
+    floor = -1 if newest is None else newest
+    value = ((floor + 1) >> 32 << 32) | low
+    return value if value > floor else value + (1 << 32)
 # linux/can/error.h: error class in the identifier, controller status in data[1]
 CAN_ERR_FLAG = 0x20000000
 ERR_CRTL, ERR_BUSOFF, ERR_RESTARTED = 0x004, 0x040, 0x100
@@ -165,6 +192,10 @@ class ReferenceReceiver:
     3. an error, remote or FD frame -> error_frame, remote_frame, fd_frame;
     4. on the output IDs 0x010, 0x040 or 0x041 -> foreign_output; ForeignOutput is set in every cycle
        within FOREIGN_HOLD_CYCLES periods of it;
+    (secured bus: FD frames are the decoded kind, a classical one -> classical_frame; and after
+    the rate policing of rule 5, rule 5a: not 20 bytes -> wrong_length, a freshness value not
+    new -> stale_freshness, an authenticator that fails -> bad_mac, the ID refused as for a
+    second sender; then rule 5 on bytes 0..7)
     5. an ID not in the DBC -> unknown_id; on an input ID (obstacle channels, TrainState) every
        frame counts for the rate, valid or not, before length and CRC: more than
        MAX_FRAMES_PER_WINDOW frames within the window (one period) quarantines the ID until
@@ -181,9 +212,12 @@ class ReferenceReceiver:
        out_of_range; otherwise accepted and latched with the arrival tick.
     """
 
-    def __init__(self, channels: int, window_ms: int) -> None:
+    def __init__(self, channels: int, window_ms: int, keys: Optional[dict] = None) -> None:
         self.channels = channels
         self.window = window_ms
+        self.keys = keys                  # sender -> key: a secured bus (rule 5a), None: unsecured
+        self.decoded = "classical" if keys is None else "fd"
+        self.newest_freshness: dict = {}
         self.reports: list = [None] * channels
         self.train: Optional[Train] = None
         self.train_tick: Optional[int] = None
@@ -207,7 +241,7 @@ class ReferenceReceiver:
                 self.bus_events[state] += 1
         elif msg.is_extended_id or msg.arbitration_id not in MONITORED:
             return kind, FILTERED
-        if kind != "classical":
+        if kind != self.decoded:          # (secured: a classical frame is an unsecured one)
             return kind, SHELL_REASON[kind]
         fid = msg.arbitration_id
         if fid in OUTPUTS:
@@ -231,6 +265,10 @@ class ReferenceReceiver:
                     self.reports[ch] = None
                 self.counter[fid] = None
                 return "rate_exceeded"
+        if self.keys is not None:
+            data, refusal = self.opened(fid, data, now)
+            if refusal:
+                return refusal
         if len(data) != 8:
             return "wrong_length"
         if e2e_crc(data, fid) != data[0]:
@@ -265,6 +303,22 @@ class ReferenceReceiver:
             self.train = Train(v["Speed"], v["TrackCondition"], v["BrakeStatus"])
             self.train_tick = now
         return ACCEPTED
+
+    def opened(self, fid: int, data: bytes, now: int) -> tuple:
+        """Rule 5a, a secured bus: (the 8-byte classic frame, "") or (data, the refusal)."""
+        if len(data) != SECURED_BYTES:
+            return data, "wrong_length"
+        newest = self.newest_freshness.get(fid)
+        value = full_freshness(newest, int.from_bytes(data[8:8 + FRESHNESS_LOW_BYTES], "little"))
+        if value - (-1 if newest is None else newest) > FRESHNESS_AHEAD:
+            return data, "stale_freshness"
+        if authenticator(self.keys[OWNER_OF[fid]], fid, data[:8], value) != data[8 + FRESHNESS_LOW_BYTES:]:
+            self.refused_until[fid] = now + SECOND_SENDER_REFUSAL_MS
+            if fid in OBSTACLES and fid - OBSTACLES[0] < self.channels:
+                self.reports[fid - OBSTACLES[0]] = None
+            return data, "bad_mac"
+        self.newest_freshness[fid] = value
+        return data[:8], ""
 
     def foreign(self, tick: int, period: int) -> bool:
         """Must the cycle at `tick` set the ForeignOutput diagnostic?"""

@@ -22,16 +22,18 @@ from .traffic import PROFILE_NAMES, TAPE_BYTES, Tape, Traffic
 STREAM_FRAMES = 2500         # one stream: at most this many frames (many varied streams rather than a few long ones)
 CHUNK_FRAMES = 50_000        # frames per worker job
 MAX_FAULTS = 50              # a worker job stops after this many faults (the verdict is FAIL anyway)
+SECURED_EVERY = 3            # every third stream runs on the secured bus (issue 39), the others unsecured
 
 
 def run_stream(table: str, topology: str, profile: str, tape: bytes, stats: Stats,
-               budget: Optional[int] = None, label: Optional[dict] = None) -> Harness:
+               budget: Optional[int] = None, label: Optional[dict] = None, secured: bool = False) -> Harness:
     """One stream: a fresh runner fed by the traffic program in `tape` (also how a failure is
-    replayed: the same four values give the same frames)."""
+    replayed: the same five values give the same frames); `secured`: on the secured bus."""
+    bus = "secured" if secured else "unsecured"
     h = Harness(setup_for(table, topology), stats, budget,
-                dict(label or {}, table=table, topology=topology, profile=profile))
+                dict(label or {}, table=table, topology=topology, profile=profile, bus=bus), secured=secured)
     stats.streams += 1
-    stats.stream_kinds[f"{table}/{topology}/{profile}"] += 1
+    stats.stream_kinds[f"{table}/{topology}/{profile}/{bus}"] += 1
     kept = len(stats.examples)
     try:
         Traffic(h, Tape(tape), profile).run()
@@ -72,7 +74,7 @@ def _hypothesis_batch(stats: Stats, target: int, seed: int, examples: int) -> No
             return
         table, topology, profile, tape = params
         run_stream(table, topology, profile, tape, stats, budget=min(STREAM_FRAMES, target - stats.frames),
-                   label={"hypothesis_seed": seed, "example": counter[0]})
+                   label={"hypothesis_seed": seed, "example": counter[0]}, secured=counter[0] % SECURED_EVERY == 0)
 
     one_stream()
 
