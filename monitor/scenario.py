@@ -40,9 +40,8 @@ BRAKES = ("normal", "degraded")
 # fault kinds each player injects (frame faults exist only on the bus; degraded and nan_distance
 # only in the train FMU)
 RUN_FAULT_KINDS = ("silence", "stuck", "bad_crc", "counter_freeze", "counter_jump", "wrong_length", "babble",
-                   "contradiction", "noise_burst", "missed_detection", "stale_timestamp", "blind",
-                   "forge_absent", "forge_brake_none", "replay_absent", "replay_brake_none",   # hostile.py
-                   "forge_absent_stolen_key")
+                   "contradiction", "noise_burst", "missed_detection", "stale_timestamp", "blind", "forge_absent",
+                   "forge_brake_none", "replay_absent", "replay_brake_none", "forge_absent_stolen_key")   # hostile.py
 COSIM_FAULT_KINDS = ("silence", "stuck", "noise_burst", "missed_detection", "degraded", "nan_distance",
                      "contradiction", "blind", "monitor_stop")     # monitor_stop: the master stops stepping it
 FAULT_KINDS = RUN_FAULT_KINDS + tuple(k for k in COSIM_FAULT_KINDS if k not in RUN_FAULT_KINDS)
