@@ -125,6 +125,15 @@ EXPECT = {
     "empty.log": Expect(rc=2, error="no CAN frames in the file"),
     "binary.log": Expect(rc=2, error="binary data", line=1),
     "obstacle_approach.log": Expect(kinds={"classical": 1372}),
+    # issue 39, the secured bus (replayed with the corpus' TEST key set, make_corpus.write_keys)
+    "secured_healthy.log": Expect(kinds={"fd": 350}),
+    # per forged ID: its 10 forged frames fail the authenticator (each quarantines the ID), the
+    # genuine frames of 10..28 are refused (until 1 s after the last), then one jump to resynchronise
+    "secured_forged_absent.log": Expect(rejected={"bad_mac": 20, "second_sender": 38, "counter_jump": 2},
+                                        kinds={"fd": 370}),
+    "secured_stolen_key.log": Expect(rejected={"bad_mac": 10, "second_sender": 19, "counter_jump": 1},
+                                     kinds={"fd": 360}),
+    "secured_replay.log": Expect(rejected={"stale_freshness": 60}, kinds={"fd": 410}),
 }
 PARSEABLE = [n for n in NAMES if EXPECT[n].rc == 0]
 
@@ -157,10 +166,29 @@ def setup():
     return cycle.create(Config(), resources.files("monitor.tables").joinpath("m1.table.rgt").read_bytes())
 
 
+KEYS = None     # the corpus' TEST key set, written once (corpus_keys) for the secured_*.log files
+
+
+def corpus_keys() -> Path:
+    """The key set the secured files were recorded with, written as a key set folder (owner-
+    only files: git keeps no modes, so it is written at test time, never committed)."""
+    global KEYS
+    if KEYS is None:
+        import tempfile
+
+        KEYS = gen.write_keys(Path(tempfile.mkdtemp(prefix="railguard-corpus-")) / "keys")
+    return KEYS
+
+
+def secured(name: str) -> dict:
+    """The replay options of a file: its key set if it was recorded on the secured bus."""
+    return {"keys": corpus_keys()} if name in gen.SECURED else {}
+
+
 @pytest.fixture(scope="module")
 def replays(setup):
     """In-process replay of every parseable file: (decisions, stats)."""
-    return {n: replay.replay_file(setup, CORPUS_DIR / n) for n in PARSEABLE}
+    return {n: replay.replay_file(setup, CORPUS_DIR / n, **secured(n)) for n in PARSEABLE}
 
 
 @dataclass
@@ -181,7 +209,8 @@ def run_cli(args: list, timeout: float = 60) -> Proc:
 def cli():
     """`railguard replay FILE --json --no-plot --table m1` for every file, a few at a time."""
     with ThreadPoolExecutor(max_workers=4) as pool:
-        procs = pool.map(lambda n: run_cli(["replay", str(CORPUS_DIR / n), "--json", "--no-plot", "--table", "m1"]), NAMES)
+        procs = pool.map(lambda n: run_cli(["replay", str(CORPUS_DIR / n), "--json", "--no-plot", "--table", "m1",
+                                            *(("--keys", str(corpus_keys())) if n in gen.SECURED else ())]), NAMES)
         return dict(zip(NAMES, procs))
 
 
@@ -431,6 +460,8 @@ FAULTS = {
     "forged_absent_in_step.log": (1002, 2804),  # first forged frame .. last genuine frame refused
     "extreme_values.log": (2000, 2905),
     "error_frames.log": (1500, 2510),          # no frame received from 1.5 s until the restart
+    "secured_forged_absent.log": (1002, 2804),  # first forged frame .. last genuine frame refused
+    "secured_stolen_key.log": (1002, 2802),
 }
 
 
@@ -485,6 +516,23 @@ def test_ignored_frames_change_no_decision(name, replays, tmp_path):
         hold = FOREIGN_HOLD_CYCLES * PERIOD
         assert [d.tick for d in decisions if d.foreign_output] == [
             d.tick for d in decisions if first <= d.tick <= last + hold]
+
+
+def test_a_secured_replay_attack_changes_no_decision(replays):
+    """Issue 39: sixty genuine secured frames sent again ten periods later, byte for byte, are
+    refused for their freshness and the decisions are those of the healthy secured log, which
+    are those of the healthy classic one."""
+    decisions, _ = replays["secured_replay.log"]
+    healthy, _ = replays["secured_healthy.log"]
+    classic, _ = replays["healthy.log"]
+    assert [key(d) for d in decisions] == [key(d) for d in healthy] == [key(d) for d in classic]
+
+
+def test_secured_logs_need_their_keys(setup):
+    """Without its key set a secured log is refused frame by frame (fd_frame: an unsecured
+    reading), and the stats say how to replay it."""
+    _, st = replay.replay_file(setup, CORPUS_DIR / "secured_healthy.log")
+    assert st["rejected"] == {"fd_frame": 350} and "--keys" in st["note"]
 
 
 def test_healthy_log_decides_none_after_init(replays):
@@ -602,7 +650,8 @@ def test_forward_gap_splits_or_is_replayed_as_silence(replays, setup):
 
 # ----------------------------------------------------------------------------- replay = live
 
-def play_live(setup, path: Path, until_line: Optional[int] = None, sent: Optional[list] = None) -> MonitorRunner:
+def play_live(setup, path: Path, until_line: Optional[int] = None, sent: Optional[list] = None,
+              keys: Optional[Path] = None) -> MonitorRunner:
     """Feed a log's frames to a real MonitorRunner on python-can's virtual bus with a simulated
     clock: for each frame, run every cycle due before its tick (the tick the replay gives it:
     ms since the first frame, never earlier than the frame before), send it from a second bus
@@ -615,7 +664,13 @@ def play_live(setup, path: Path, until_line: Optional[int] = None, sent: Optiona
     mon_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     feed = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     texts = path.read_text().splitlines()
-    runner = MonitorRunner(mon_bus, setup, clock)
+    security = None
+    if keys is not None:
+        from can_bus.keys import SENDERS
+        from can_bus.security import for_node
+
+        security = for_node(keys, "live", SENDERS, state=False)
+    runner = MonitorRunner(mon_bus, setup, clock, security=security)
     t0 = last_ts = None
     last_tick = 0
     try:
@@ -664,10 +719,10 @@ def test_replay_equals_live(name, setup, replays, tmp_path):
         lines = path.read_text().splitlines()[: until - 1]
         first = tmp_path / name
         first.write_text("".join(s + "\n" for s in lines))
-        seg_decisions, st = replay.replay_file(setup, first)
+        seg_decisions, st = replay.replay_file(setup, first, **secured(name))
         assert [key(d) for d in seg_decisions] == [key(d) for d in decisions[: len(seg_decisions)]]
         decisions = seg_decisions
-    runner = play_live(setup, path, until)
+    runner = play_live(setup, path, until, keys=secured(name).get("keys"))
     assert [key(r) for r in runner.records] == [key(d) for d in decisions]
     assert {k: v for k, v in runner.receiver.rejected.items() if v} == st["rejected"]
     assert runner.monitor.tally.filtered == st["filtered"]

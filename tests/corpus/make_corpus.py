@@ -14,6 +14,7 @@ what this script writes (so they cannot drift from it).
 
     python tests/corpus/make_corpus.py            # (re)write the corpus next to this file
     python tests/corpus/make_corpus.py --check    # exit 1 if a committed file differs
+    python tests/corpus/make_corpus.py --keys DIR # the secured_*.log files' TEST key set, for --keys
 
 Deterministic: no randomness, no clock; the only inputs are the DBC (via can_bus.codec,
 which encodes the payloads) and this file.
@@ -31,6 +32,7 @@ sys.path.insert(0, str(HERE.parents[1]))        # run as a script from anywhere
 from can_bus.codec import (  # noqa: E402
     BRAKE_DEMAND_ID, MONITOR_STATUS_ID, OBSTACLE_IDS, TRAIN_STATE_ID, Sender, encode, report_signals,
 )
+from can_bus.secoc import protect  # noqa: E402
 from monitor.core.types import ABSENT, PRESENT, STATIC, Report  # noqa: E402
 
 T0_US = 1_700_000_000_000_000      # 2023-11-14 22:13:20 UTC, in microseconds
@@ -55,6 +57,11 @@ def std(fid: int) -> str:
     return f"{fid:03X}"
 
 
+def fd_line(t_us: int, fid: int, data: bytes, direction: str = "") -> str:
+    """A CAN FD frame in candump -L: ID##, the flags digit (1: bit-rate switch), the data."""
+    return line(t_us, std(fid), "#1" + bytes(data).hex().upper(), direction)
+
+
 def noise(tag: str, n: int) -> bytes:
     """n deterministic pseudo-random bytes named by tag."""
     out = b""
@@ -69,17 +76,59 @@ def t_of(k: int, slot_ms: int = 0) -> int:
     return T0_US + k * PERIOD + slot_ms * MS
 
 
-class Log:
-    """Lines of one log, and one alive counter per sender (frame ID)."""
+# ----------------------------------------------------------------------------- the secured bus (issue 39)
+# The secured_*.log files are recorded on a secured bus with this fixed TEST key set (never a
+# real one): `python tests/corpus/make_corpus.py --keys DIR` writes it as a key set folder
+# (railguard replay FILE --keys DIR); the keys are derived from their names, so nothing secret
+# is committed and every run writes the same set.
+def corpus_keys() -> dict:
+    from can_bus.keys import SENDERS
 
-    def __init__(self) -> None:
+    return {s: hashlib.sha256(f"railguard corpus test key {s}".encode()).digest()[:16] for s in SENDERS}
+
+
+def write_keys(folder: Path) -> Path:
+    """The corpus key set as a key set folder (owner-only files, manifest marked test)."""
+    import os
+
+    from can_bus.keys import FORMAT, MANIFEST, fingerprint
+
+    folder = Path(folder)
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    keys = corpus_keys()
+    for sender, key in keys.items():
+        path = folder / f"{sender}.key"
+        path.write_text(key.hex() + "\n", encoding="ascii")
+        os.chmod(path, 0o600)
+    lines = [f"format = {FORMAT}", "test = true", 'created = "corpus"', "[senders]"]
+    lines += [f'{s} = "{fingerprint(k)}"' for s, k in keys.items()]
+    (folder / MANIFEST).write_text("\n".join(lines) + "\n", encoding="ascii")
+    os.chmod(folder / MANIFEST, 0o600)
+    return folder
+
+
+def corpus_security(node: str = "corpus"):
+    from can_bus.keys import KeySet
+    from can_bus.security import Security
+
+    return Security(KeySet(Path("corpus-test-keys"), corpus_keys(), True, {}), node, state=False)
+
+
+class Log:
+    """Lines of one log, and one alive counter per sender (frame ID); `secured`: every frame
+    the log's senders write is a secured CAN FD frame under the corpus keys."""
+
+    def __init__(self, secured: bool = False) -> None:
         self.lines: list[str] = []
-        self.sender = Sender()
+        self.security = corpus_security() if secured else None
+        self.sender = Sender(self.security)
 
     def frame(self, t_us: int, fid: int, signals: dict, direction: str = "") -> bytes:
         """The sender's next frame on fid (counter + 1, correct CRC)."""
         data = self.sender.frame(fid, signals)
-        self.lines.append(line(t_us, std(fid), data.hex().upper(), direction))
+        self.lines.append(fd_line(t_us, fid, data, direction) if self.security else
+                          line(t_us, std(fid), data.hex().upper(), direction))
         return data
 
     def skip(self, fid: int) -> None:
@@ -455,22 +504,68 @@ FORGED_CHANNELS = (2, 3)           # module 1's two channels
 FORGED = range(10, 20)             # periods 10..19
 
 
-def forged_absent_in_step() -> str:
+def in_step_forgery(channels: tuple, key: Optional[bytes] = None) -> str:
     """Every channel reports a static obstacle from 2,000 m on (2 m closer per period at
-    20 m/s, far beyond any curve). A second node forges module 1's channels (0x022, 0x023) in
-    periods 10..19: ABSENT with a correct CRC and the counter the genuine frame is about to
-    carry, 0.5 ms before it (issue 39)."""
+    20 m/s, far beyond any curve). A second node forges `channels` in periods 10..19: ABSENT
+    with a correct CRC and the counter the genuine frame is about to carry, 0.5 ms before it
+    (issue 39). With `key` the bus is secured: the forged frame also carries the freshness
+    value the genuine one is about to carry and an authenticator under `key`, which is not the
+    ID owner's."""
     def report(k, ch):
         return Report(PRESENT, FORGED_FROM_DM - 20 * k, SPEED_CMS, STATIC, 0)
 
     def hook(log, k, fid, t, sig):
         ch = fid - OBSTACLE_IDS[0]
-        if k in FORGED and ch in FORGED_CHANNELS:
+        if k in FORGED and ch in channels:
             forged = encode(fid, report_signals(CLEAR, ch), log.next_counter(fid))
-            log.raw(line(t - MS // 2, std(fid), forged.hex().upper()))
+            if key is None:
+                log.raw(line(t - MS // 2, std(fid), forged.hex().upper()))
+            else:
+                log.raw(fd_line(t - MS // 2, fid, protect(key, fid, forged, log.security.tx.next.get(fid, 0))))
         return False
-    log = Log()
+    log = Log(secured=key is not None)
     traffic(log, range(PERIODS), hook=hook, report=report)
+    return log.text()
+
+
+def forged_absent_in_step() -> str:
+    """Module 1's channels (0x022, 0x023) forged on the classic bus."""
+    return in_step_forgery(FORGED_CHANNELS)
+
+
+def secured_healthy() -> str:
+    """The healthy traffic on the secured bus: every frame a 20-byte CAN FD frame, its
+    freshness value counting from 0 per ID, its authenticator under its sender's key."""
+    log = Log(secured=True)
+    traffic(log, range(PERIODS))
+    return log.text()
+
+
+def secured_forged_absent() -> str:
+    """The same on the secured bus, by a node holding no key (a key of its own)."""
+    return in_step_forgery(FORGED_CHANNELS, noise("forger key", 16))
+
+
+def secured_stolen_key() -> str:
+    """The forger holds channel 0's sensor key (a sensor node taken over) and forges channel 1
+    (0x021) with it: a real sensor's authenticator under the wrong key for the ID."""
+    return in_step_forgery((1,), corpus_keys()["ch0"])
+
+
+def secured_replay() -> str:
+    """Healthy secured traffic; in periods 10..19 a node sends every channel's genuine frame
+    of ten periods earlier again, byte for byte, 0.5 ms before the genuine one (a replay: the
+    authenticators are genuine, the freshness values old)."""
+    sent: dict = {}
+
+    def hook(log, k, fid, t, sig):
+        if k in FORGED and fid in OBSTACLE_IDS:
+            log.raw(fd_line(t - MS // 2, fid, sent[(fid, k - 10)]))
+        data = log.frame(t, fid, sig)
+        sent[(fid, k)] = data
+        return True
+    log = Log(secured=True)
+    traffic(log, range(PERIODS), hook=hook)
     return log.text()
 
 
@@ -516,7 +611,12 @@ CORPUS: dict[str, Callable[[], object]] = {
     "empty.log": empty,
     "binary.log": lambda: BINARY,
     "obstacle_approach.log": obstacle_approach,
+    "secured_healthy.log": secured_healthy,
+    "secured_forged_absent.log": secured_forged_absent,
+    "secured_stolen_key.log": secured_stolen_key,
+    "secured_replay.log": secured_replay,
 }
+SECURED = tuple(n for n in CORPUS if n.startswith("secured_"))   # replayed with --keys (write_keys)
 
 
 def content(name: str) -> bytes:
@@ -535,6 +635,9 @@ def write(folder: Path = HERE) -> list[Path]:
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--keys"] and len(argv) == 2:
+        print(f"wrote the corpus TEST key set in {write_keys(Path(argv[1]))}")
+        return 0
     if argv[:1] == ["--check"]:
         bad = [n for n in CORPUS if not (HERE / n).is_file() or (HERE / n).read_bytes() != content(n)]
         for n in bad:
