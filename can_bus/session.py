@@ -31,6 +31,7 @@ from .scenario import Scenario
 from .security import describe as describe_security
 
 VIRTUAL_CHANNEL = "railguard"
+ATTACK_REFUSALS = ("bad_mac", "stale_freshness", "second_sender", "classical_frame", "foreign_output")
 RECORDER_BUDGET_S = 0.010    # per cycle on a real bus: the recorder may never hold the monitor's cycle
 
 
@@ -170,6 +171,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "max_send_gap_ms": None if runner.clock.simulated else runner.max_send_gap_ms,   # wall time only
         "send_failures": runner.send_failures,
         "bus_security": describe_security(runner.security),
+        "attack": attack_note(runner, player),
         "table": runner.setup.model,
         "table_sha256": runner.setup.table.sha256,
         "log": None if log is None else str(log),
@@ -181,6 +183,20 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         summary["scenario"] = player.scenario.name
         summary["faults_injected"] = sorted(f"{k}@ch{c}" for k, c in player.faults_injected)
     return summary
+
+
+def attack_note(runner: MonitorRunner, player: Optional[Player]) -> Optional[str]:
+    """An attack the bus saw, named (issue 39): the frames refused as another node's (forged,
+    replayed, unsecured on a secured bus, on the monitor's own IDs) and the brake receiver's
+    second-sender periods; None if there was none."""
+    parts = [f"{k} {v:,}" for k, v in sorted(runner.receiver.rejected.items()) if v and k in ATTACK_REFUSALS]
+    if player is not None:                # the brake side's own receiver (BrakeDemand forged or replayed)
+        parts += [f"brake side {k} {v:,}" for k, v in sorted(player.receiver.rejected.items())
+                  if v and k in ATTACK_REFUSALS]
+        held = player.brakes.causes.get("second_sender", 0)
+        if held:
+            parts.append(f"brake receiver: second sender {held:,} periods")
+    return "frames refused as an attack: " + ", ".join(parts) if parts else None
 
 
 def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title: str) -> Path:
@@ -198,6 +214,9 @@ def make_plot(path: Path, runner: MonitorRunner, player: Optional[Player], title
         true_d = None
     if runner.security is None:
         title += " - UNSECURED bus (E2E only)"
+    attack = attack_note(runner, player)
+    if attack:
+        title += "\n" + attack
     return plot_run(path, title, t, speed, true_d, voted, [r.demand for r in recs], [r.mode for r in recs],
                     speed_distance=speed_distance(runner, player), **track_columns(recs), **risk_columns(recs))
 

@@ -47,7 +47,7 @@ def test_run_is_secured_by_default_and_its_frames_verify(secured_run):
     authenticator verifies under its owner's key; the train stops as on the unsecured bus."""
     out, summary = secured_run
     assert summary["bus_security"].startswith("secured") and "TEST keys" in summary["bus_security"]
-    assert summary["outcome"] == "stopped" and summary["rejects"] == {}
+    assert summary["outcome"] == "stopped" and summary["rejects"] == {} and summary["attack"] is None
     ks = keys.load(out / "test-keys")
     assert ks.test
     frames = [f.msg for f in logfile.read(out / "run-static-obstacle.log")]
@@ -172,6 +172,8 @@ def test_every_hostile_node_fails_on_a_secured_bus(name, tmp_path):
     assert s["outcome"] == "stopped", s
     assert s[where].get(what, 0) > 0, (where, s[where])
     assert s["hostile_frames"], s
+    if where != "hostile_frames":             # named in the summary (and the plot's title)
+        assert s["attack"] and what.replace("_", " ") in s["attack"].replace("_", " "), s["attack"]
 
 
 def test_the_secured_dbc_is_the_classic_one_made_secured():
