@@ -117,6 +117,7 @@ class Player:
         self.decel += max(-rate * dt, min(rate * dt, target - self.decel))
         if self.collision:
             self.speed = 0.0
+            self.t += dt                 # the world's clock goes on: the run ends at the scenario's end
             return
         new_speed = max(0.0, self.speed - self.decel * dt)
         self.position += (self.speed + new_speed) / 2 * dt

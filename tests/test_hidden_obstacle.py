@@ -47,3 +47,6 @@ def test_an_obstacle_seen_beyond_a_remembered_one_is_remembered_too_and_the_trai
     s = _run(tmp_path, table, scenario="oncoming-behind-leaver-10")
     assert s["outcome"] == "struck_at_standstill" and 50 <= s["margin_m"] <= 150, s
     assert s["track"]["forgotten"] == 1 and s["track"]["held_longest_s"] >= 25
+    # the world's clock goes on after B reaches the train: the run ends with the scenario (60 s,
+    # 601 cycles), not 60 s later at the run's limit (it did, with the clock stopped at 31.6 s)
+    assert s["scenario_s"] == 60.0 and s["cycles"] == 601, (s["scenario_s"], s["cycles"])
