@@ -340,3 +340,29 @@ def test_the_several_tracks_keep_every_obstacle_at_or_before_its_position_and_ca
         monkeypatch.setattr(module, name, fake)
         assert any(r.status == "refuted" for r in release.tracks_results()), fake.__name__
         monkeypatch.undo()
+
+
+PLANTED_SAMPLING = """
+from monitor.core import braking
+braking.SUPERVISED_PERIODS = 1                 # the edit, in the shipped module, before anything reads it
+from monitor.core.config import Config
+from verification.physics import obligations
+from verification.physics.model import Declaration
+cfg = Config()
+results = obligations.integer_results(cfg, Declaration.of(cfg), braking)
+print(" ".join(r.status for r in results if r.context["curve"] == "ebi" and not r.context["service"]))
+"""
+
+
+def test_the_sampling_period_left_out_of_the_shipped_code_fails_the_proof():
+    """Issue 40 item 1: the physics states its timing from the monitor's timing contract
+    (model.CONTRACT_PERIODS), never from braking.py. `SUPERVISED_PERIODS = 1` planted in the
+    shipped module itself, before the proof imports it (a fresh process), proved 151 of 151
+    while the reference imported the constant and shrank with it; now the curves fall short of
+    what the physics needs and Z3 refutes EBI under every reported condition."""
+    assert model.CONTRACT_PERIODS == 2 and model.CONTRACT_ZONE_PERIODS == 1
+    proc = subprocess.run([sys.executable, "-c", PLANTED_SAMPLING], capture_output=True, text=True, timeout=600,
+                          cwd=weakenings.REPO)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    statuses = proc.stdout.split()
+    assert len(statuses) == len(obligations.CONDITIONS) and set(statuses) == {"refuted"}, proc.stdout

@@ -36,13 +36,23 @@ from fractions import Fraction
 
 import z3
 
-from monitor.core.braking import SUPERVISED_PERIODS
 from monitor.core.config import Config, emergency_bands
 from monitor.core.types import MAX_CLOSING_CMS, MAX_SPEED_CMS
 
 G = Fraction(981, 100)                   # m/s^2, as gradient_accel_mms2 uses it (rounded up there)
 MAX_UPHILL = Fraction(60, 1000)          # the model's gradient ranges from this uphill ...
 MAX_TRACK_CLOSING_CMS = 2 * MAX_CLOSING_CMS + MAX_SPEED_CMS   # a remembered obstacle's closing: its own speed + ours
+
+# The monitor's timing contract, stated here and never read from the code it judges (issue 40
+# item 1: a reference that imported braking.SUPERVISED_PERIODS shrank with it, and a curve that
+# forgot the sampling period proved): between the last cycle that found the train outside a
+# supervised curve and the brakes, the world may let pass the sampling period (the first cycle
+# inside may come one period later) and the demand's period on its way to the brakes; a zone
+# limit is demanded at the limit itself, so only the demand's period. The code's own constants
+# (braking.SUPERVISED_PERIODS, ZONE_PERIODS; RG_SUPERVISED_PERIODS, RG_ZONE_PERIODS) stay on
+# the code's side of every obligation.
+CONTRACT_PERIODS = 2          # sampling + the demand's way to the brakes
+CONTRACT_ZONE_PERIODS = 1     # the demand's way to the brakes
 
 ASSUMPTIONS = (
     "the reported distance is the true distance when the report was measured (sensor distance error is not declared)",
@@ -141,11 +151,11 @@ class RealCurves:
 
 
 def real_curves(d: Declaration, v, c, age, track: int, brake: int, service: bool = False,
-                periods: int = SUPERVISED_PERIODS) -> RealCurves:
+                periods: int = CONTRACT_PERIODS) -> RealCurves:
     """The curves of docs/supervision.md section 2 in exact real arithmetic, in m, at measured
     speed v (m/s), closing speed c (m/s) and report age (s): the yardstick for the integer code.
     `periods` in the reaction: the supervision's two (the sampling and the demand's) or a zone
-    limit's one (braking.ZONE_PERIODS)."""
+    limit's one (CONTRACT_ZONE_PERIODS): the monitor's timing contract, not the code's constants."""
     gg = q(G * d.max_gradient)
     e = q(d.speed_error)
     v_max, v_min = v * (1 + e), v * (1 - e)

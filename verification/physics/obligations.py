@@ -28,14 +28,12 @@ from typing import Callable, Optional
 
 import z3
 
-from monitor.core.braking import SUPERVISED_PERIODS, ZONE_PERIODS
 from monitor.core.config import Config
 from monitor.core.types import MAX_CLOSING_CMS, MAX_DISTANCE_DM, MAX_SPEED_CMS
 
 from . import symbolic
-from .model import (G, MAX_TRACK_CLOSING_CMS, MAX_UPHILL, Declaration, band_sums, band_terms, band_top,
-                    invariant_obligation, phase_invariants, pos,
-                    q, real_curves)
+from .model import (CONTRACT_PERIODS, CONTRACT_ZONE_PERIODS, G, MAX_TRACK_CLOSING_CMS, MAX_UPHILL, Declaration,
+                    band_sums, band_terms, band_top, invariant_obligation, phase_invariants, pos, q, real_curves)
 
 CONDITIONS = ((0, 0, "normal"), (1, 0, "slippery"), (0, 1, "degraded"), (1, 1, "slippery+degraded"))
 SERVICE_CONDITIONS = CONDITIONS[:1]   # the core uses the service curve (the table's alpha1) under normal conditions only
@@ -110,7 +108,7 @@ class Lemmas:
     formula to refute, named after the phase it covers (the way a KeYmaera proof splits)."""
 
     def __init__(self, d: Declaration, service: bool, track: int, brake: int, curve_d: Optional[Declaration] = None,
-                 remembered: bool = False, periods: int = SUPERVISED_PERIODS):
+                 remembered: bool = False, periods: int = CONTRACT_PERIODS):
         """`curve_d`: the declaration the curve is computed from (default `d`, the train's): a
         test plants a weaker one to see the proof fail. `remembered`: the closing speed is the
         memory's (the remembered own speed, at least the obstacle's, plus the train's least
@@ -247,7 +245,7 @@ def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Re
         # brake must be commanded, so the claim is for a demand at the limit itself
         curve = "alpha1 (service, a zone limit: demanded at it)" if service else "EBI (emergency)"
         for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
-            lemmas = Lemmas(d, service, track, brake, periods=ZONE_PERIODS if service else SUPERVISED_PERIODS)
+            lemmas = Lemmas(d, service, track, brake, periods=CONTRACT_ZONE_PERIODS if service else CONTRACT_PERIODS)
             steps = [(s, None) for s in lemmas.steps()] + [(s, k) for k in KINDS for s in lemmas.kind_steps(k)]
             for (name, phase, formula), kind in steps:
                 r = Result(f"{curve}, {cond}: {name}", "sufficiency", phase,
@@ -298,8 +296,10 @@ def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIME
                                           "closing_cms": c, "age_ms": a, "service": service}, domain,
                                      timeout_ms=EXPLORE_TIMEOUT_MS)
             explored = time.perf_counter() - t0
+            # what the physics needs, on the monitor's timing contract (model.CONTRACT_*): the
+            # code's own constants are only inside `fn`
             real = real_curves(d, s / 100, c / 100, a / 1000, track, brake, service,
-                               ZONE_PERIODS if service else SUPERVISED_PERIODS)
+                               CONTRACT_ZONE_PERIODS if service else CONTRACT_PERIODS)
             names = ("ebi",) if service else CURVES
             proved_facts = [[] for _ in paths]       # per path: curves already proved there (sound hypotheses)
             proved_on = {name: set() for name in names}
