@@ -69,8 +69,12 @@ def test_report_section_tables_and_figure(quick, tmp_path):
     for kind in cp.KINDS:
         assert f"`{kind}`" in md
     assert "| fault \\ scenario |" in md and "sudden-120m" in md and "heat.png" in md
-    names = [c.name for c in cp.checks(summary)]
+    checks = cp.checks(summary)
+    names = [c.name for c in checks]
     assert len(names) == len(set(names))
+    # every check of the quick campaign's report section passes (the verify part's, which
+    # tests/test_verify.py leaves to this module; the vcan0 sample: test_vcan_sample_in_the_sandbox)
+    assert all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
     assert sum(n.startswith("campaign: ") and " detected (" in n for n in names) == len(cp.KINDS) + 2 * len(cp.HOSTILE_KINDS)
 
 

@@ -99,9 +99,10 @@ def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
 
 # parts whose section its own test module already runs and asserts, check by check, in CI
 # (tests/test_verify_seed000.py, test_verify_seed001.py: the quick section, 24 s of the serial
-# phase; tests/test_physics.py: the full physics part through the same command, 35 s): run
-# once, not twice
-OWN_TESTS = ("seed000", "seed001", "physics")
+# phase; tests/test_physics.py: the full physics part through the same command, 35 s;
+# tests/test_campaign.py: the quick campaign's every check, and its vcan0 sample, 19 s;
+# tests/test_fuzz.py: the quick fuzz section): run once, not twice
+OWN_TESTS = ("seed000", "seed001", "physics", "campaign", "fuzz")
 
 
 def test_verify_quick_passes_with_report_and_json(tmp_path):
