@@ -21,19 +21,27 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from verification import mutation as M
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_python_core_has_no_surviving_mutant():
-    """0 non-equivalent survivors among the mutants of the CI scopes (the listed equivalent
-    ones are not run here; the full run checks that they do survive)."""
+@pytest.fixture(scope="module")
+def ci_run():
+    """The tool on the CI scopes, as users run it: (process, its JSON summary, seconds)."""
     t0 = time.perf_counter()
     res = subprocess.run([sys.executable, "-m", "verification.mutation", "--json", "--skip-equivalent",
                           "--scope", *M.CI_SCOPES], cwd=ROOT, capture_output=True, text=True, timeout=900)
     assert res.stdout, res.stderr[-3000:]
-    summary = json.loads(res.stdout)
+    return res, json.loads(res.stdout), time.perf_counter() - t0
+
+
+def test_python_core_has_no_surviving_mutant(ci_run):
+    """0 non-equivalent survivors among the mutants of the CI scopes (the listed equivalent
+    ones are not run here; the full run checks that they do survive)."""
+    res, summary, seconds = ci_run
     survivors = "\n".join(f"{s['id']} [{s['status']} {s['detail']}]\n{s['diff']}" for s in summary["survivors"])
     assert summary["survived"] == 0, f"{summary['survived']} surviving mutants:\n{survivors}"
     assert summary["errors"] == 0
@@ -44,7 +52,25 @@ def test_python_core_has_no_surviving_mutant():
     assert summary["by_file"]["monitor/core/memory.py"]["total"] >= 20      # observe and forget, not all of it
     assert res.returncode == 0, res.stderr[-3000:]
     print(f"{summary['total']} mutants, {summary['killed']} killed, {summary['equivalent']} equivalent, "
-          f"{time.perf_counter() - t0:.0f} s")
+          f"{seconds:.0f} s")
+
+
+def test_the_report_part_renders_the_tool_s_summary(ci_run, tmp_path, monkeypatch):
+    """`verification.mutation.section` (the report's part, which `verify --quick` does not run)
+    on the CI run's real summary: its check passes, the table, the survivors'
+    and the equivalents' lists are in its text, the summary is written beside it; and a
+    summary with a survivor fails the check and names it."""
+    from verification.mutation import part
+
+    _, summary, _ = ci_run
+    monkeypatch.setattr(part, "run", lambda *a, **k: summary)
+    sec = part.section(tmp_path, True, lambda _: None)
+    assert [c.passed for c in sec.checks] == [True] and "| **all** |" in sec.markdown
+    assert json.loads((tmp_path / "mutation.json").read_text()) == summary
+    survivor = dict(id="monitor/core/voter.py:1:1:cmp:<", status="survived", detail="", diff="--- a\n+ x < y\n")
+    monkeypatch.setattr(part, "run", lambda *a, **k: dict(summary, survived=1, survivors=[survivor]))
+    sec = part.section(tmp_path, True, lambda _: None)
+    assert [c.passed for c in sec.checks] == [False] and survivor["id"] in sec.markdown
 
 
 def test_the_tool_kills_a_planted_mutant_reports_a_planted_survivor_and_times_out_a_hang():
