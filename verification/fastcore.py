@@ -333,6 +333,7 @@ class VectorMonitor:
         dist = np.where(present, distance_dm, NO_DISTANCE).astype(I64)
         toward = np.where(present, raw_closing, speed)
         own = speed * (1000 - cfg.speed_error_permille) // 1000      # the train's share of a closing speed
+        own_up = -(-speed * (1000 - cfg.speed_error_permille) // 1000)   # and back, rounded up (cycle.py)
         dispute = present & (mask != everyone) & ~implausible
         error = dispute | implausible                   # the table holds its node
         several = present & ((mask & (mask - 1)) != 0)      # two modules or more (two bits set)
@@ -350,7 +351,7 @@ class VectorMonitor:
         n = present.shape[0]
         rows = np.arange(n)
         n_dm = np.where(remembered, near[first, rows] // UNITS_PER_DM, NO_DISTANCE)
-        n_toward = closing[first, rows] + own
+        n_toward = closing[first, rows] + own_up
         n_age = ages[first, rows]
         sup = present | remembered
         sup_dist = np.where(present, dist, n_dm)
@@ -361,7 +362,7 @@ class VectorMonitor:
         # beyond the nearest): their curves in the same call, after the trains' (k, r: slot, train)
         k, r = np.nonzero(watched & (present | (np.arange(TRACKS)[:, None] != first)))
         both = curves(cfg, np.concatenate((speed, speed[r])), np.concatenate((track, track[r])),
-                      np.concatenate((brake, brake[r])), np.concatenate((sup_toward, closing[k, r] + own[r])),
+                      np.concatenate((brake, brake[r])), np.concatenate((sup_toward, closing[k, r] + own_up[r])),
                       np.concatenate((sup_age, ages[k, r])))
         c = Curves(*(x[:n] for x in both))
         env, warn = supervision(sup, sup_dist, c, held_emergency)

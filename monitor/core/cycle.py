@@ -82,10 +82,18 @@ def _train(train) -> tuple[int, int, int, bool]:
     """(speed, track, brake, valid): an invalid train state is read to the safe side."""
     try:
         v, k, b = train.speed_cms, train.track, train.brake
-        if type(v) is int and type(k) is int and type(b) is int and 0 <= v <= MAX_SPEED_CMS and k in (0, 1) and b in (0, 1):
-            return v, k, b, True
+        if type(v) is int and type(k) is int and type(b) is int:
+            return train_in_range(v, k, b)
     except (AttributeError, TypeError):
         pass
+    return MAX_SPEED_CMS, 1, 1, False
+
+
+def train_in_range(v: int, k: int, b: int) -> tuple[int, int, int, bool]:
+    """(speed, track, brake, valid) of an integer train state, out of range read to the safe
+    side (apart from `_train`'s type guard, so that the proof runs it on symbolic numbers)."""
+    if 0 <= v <= MAX_SPEED_CMS and k in (0, 1) and b in (0, 1):
+        return v, k, b, True
     return MAX_SPEED_CMS, 1, 1, False
 
 
@@ -185,6 +193,9 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     speed, track, brake, train_ok = _train(inputs.train)
     err = cfg.speed_error_permille
     own_speed = speed * (1000 - err) // 1000          # the train's share of a closing speed
+    # and back: a remembered own speed plus the train's least speed rounded up, so that no
+    # curve counts less of the obstacle's speed than the memory holds (issue 40 item 2)
+    own_speed_up = -(-speed * (1000 - err) // 1000)
     toward = speed if closing is None else closing
     confirmed = distance != NO_DISTANCE and sys_status == PRESENT and not sys_error
     # modules that see it with both channels: one creates a track, two (or a confirmed
@@ -233,27 +244,30 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     t_dm = distance_dm(tracks[0].near)
     t_state = first_state if first_lost else (states[0] if tracks[0].near != NO_TRACK else TRACK_NONE)
     t_cycles = 0 if first_lost else tracks[0].cycles
+    # the remembered obstacles as the next cycle finds them, from the memory alone (moved_tracks)
+    next_tracks = moved_tracks(setup, tracks, ages, states, speed)
 
     # 5. braking curves at the measured speed (docs/supervision.md) for the voted obstacle and
-    #    for the remembered one (unless a confirmed picture just replaced it: then they are the
-    #    same), under the reported conditions; the higher demand counts. The table's zones under
-    #    normal conditions; the observation reads the voted picture alone
-    if distance != NO_DISTANCE:
-        curve = curves(cfg, speed, track, brake, toward, age)
+    #    for every remembered one (its closing speed and the age of a sighting it took this
+    #    cycle), unless it is the confirmed picture itself, under the reported conditions; the
+    #    highest demand counts. The table's zones under normal conditions; the observation reads
+    #    the voted picture alone. Every curve is computed before anything is decided from them
+    #    (the proof of the whole cycle follows the step to there: verification/physics/whole_cycle.py)
+    voted = curves(cfg, speed, track, brake, toward, age) if distance != NO_DISTANCE else None
+    watched = [(i, t, curves(cfg, speed, track, brake, t.closing + own_speed_up, ages[i]))
+               for i, t in enumerate(tracks)
+               if t.near != NO_TRACK and not (confirmed and t.near == distance * UNITS_PER_DM)]
+    if voted is not None:
         alpha1, alpha2 = _zone_limits(cfg, speed, toward, age)
         z = zone(distance, alpha1, alpha2, cfg.warning_margin_dm)
-        env, warn = supervision_demand(True, distance, curve.ebi_dm, curve.sbi_dm, curve.warning_dm, state.latched)
+        env, warn = supervision_demand(True, distance, voted.ebi_dm, voted.sbi_dm, voted.warning_dm, state.latched)
     else:
         z = 3 if sys_status == DEGRADED else 0
         env, warn = MAINTAIN, False
-    # every remembered obstacle on its own curves (its closing speed and the age of a sighting
-    # it took this cycle), unless it is the confirmed picture itself; the nearest of them is
-    # what the risk reads, and one that no channel shows this cycle is the memory's reason
+    # the nearest remembered obstacle is what the risk reads, and one that no channel shows this
+    # cycle is the memory's reason
     nearest, memory_reason = -1, False
-    for i, t in enumerate(tracks):
-        if t.near == NO_TRACK or (confirmed and t.near == distance * UNITS_PER_DM):
-            continue
-        curve = curves(cfg, speed, track, brake, t.closing + own_speed, ages[i])
+    for i, t, curve in watched:
         env_t, warn_t = supervision_demand(True, distance_dm(t.near), curve.ebi_dm, curve.sbi_dm, curve.warning_dm,
                                            state.latched)
         env, warn = combine(env, env_t, MAINTAIN), warn or warn_t
@@ -268,7 +282,7 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
     near_dm = distance
     if nearest >= 0 and (distance == NO_DISTANCE or distance_dm(tracks[nearest].near) < distance):
         near_dm = distance_dm(tracks[nearest].near)
-        alpha1, alpha2 = _zone_limits(cfg, speed, tracks[nearest].closing + own_speed, ages[nearest])
+        alpha1, alpha2 = _zone_limits(cfg, speed, tracks[nearest].closing + own_speed_up, ages[nearest])
     elif distance == NO_DISTANCE and sys_status == DEGRADED:
         near_dm = 0
         alpha1, alpha2 = _zone_limits(cfg, speed, speed, 0)
@@ -352,21 +366,27 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
 
     error_cycles = _inc(state.error_cycles) if error or stale else state.error_cycles
     cycle = _inc(state.cycle)
-    # the remembered obstacle moved for the next period, worst case for the train; after a
-    # sighting also for the report's age (the remembered curves count no age: a position is
-    # moved by the age once, at the speed of the cycle that saw it, not at every later and
-    # perhaps slower speed; issue 30 item 4)
-    for i, t in enumerate(tracks):
-        if t.near != NO_TRACK:
-            moved = t.near - near_travel(speed, err, setup.track_accel, t.closing, cfg.period_ms + ages[i])
-            tracks[i] = t._replace(near=moved if moved > 0 else 0)
-    tracks = ordered(tracks, ages, states)[0]
     new_state = State(mode, node, held, seen, tuple(disagree), healthy, cycle, error_cycles, calm, tuple(agree),
-                      table_demand if mode != INIT else MAINTAIN, tuple(tracks),
+                      table_demand if mode != INIT else MAINTAIN, tuple(next_tracks),
                       keep and speed > 0 and held > MAINTAIN, tuple(plaus))
     out = Outputs(final, reasons, distance, node, mode, flags, error, obs, cycle, error_cycles, warn,
                   t_dm, t_cycles, t_state, r1, r2, score, risk_category(score), setup.table.risk[node])
     return new_state, out
+
+
+def moved_tracks(setup: Setup, tracks: list, ages: list, states: list, speed: int) -> list:
+    """The remembered obstacles moved for the next period, worst case for the train, nearest
+    first; after a sighting also for the report's age (the remembered curves count no age: a
+    position is moved by the age once, at the speed of the cycle that saw it, not at every
+    later and perhaps slower speed; issue 30 item 4)."""
+    cfg = setup.config
+    out = list(tracks)
+    for i, t in enumerate(out):
+        if t.near != NO_TRACK:
+            moved = t.near - near_travel(speed, cfg.speed_error_permille, setup.track_accel, t.closing,
+                                         cfg.period_ms + ages[i])
+            out[i] = t._replace(near=moved if moved > 0 else 0)
+    return ordered(out, list(ages), list(states))[0]
 
 
 def _zone_limits(cfg: Config, speed: int, toward: int, age: int) -> tuple[int, int]:

@@ -40,13 +40,14 @@ def declarations(config: Optional[Config], quick: bool = False) -> list[tuple[st
     return out
 
 
-def prove(cfg: Config, progress: Callable[[str], None] = lambda _: None, braking=None):
-    """Every obligation for `cfg` on the shipped code (or the `braking` module given)."""
+def prove(cfg: Config, progress: Callable[[str], None] = lambda _: None, braking=None, whole: bool = True):
+    """Every obligation for `cfg` on the shipped code (or the `braking` module given);
+    `whole`: with the whole cycle's (whole_cycle.py)."""
     from monitor.core import braking as shipped
 
     from . import obligations
 
-    return obligations.check_all(cfg, braking or shipped, progress=progress)
+    return obligations.check_all(cfg, braking or shipped, progress=progress, whole=whole)
 
 
 def weakening_runs(cfg: Config, out_dir: Path, progress: Callable[[str], None], replay_all: bool = True,
@@ -81,11 +82,24 @@ def weakening_run(job: tuple) -> dict:
     folder = out_dir / "physics" / w.name
     core = weakenings.weakened_core(w, folder / "core")
     d = Declaration.of(cfg)
-    failed = [r for r in obligations.integer_results(cfg, d, module) if not r.proved]
-    failed_c = [r for r in obligations.integer_results(cfg, d, obligations.c_code(core)) if not r.proved]
+    if w.memory:                    # the memory's feed: the whole cycle, Python and C (whole_cycle.py)
+        from .whole_cycle import whole_cycle_results
+
+        failed = [r for r in whole_cycle_results(cfg, sources=weakenings.weakened_sources(w), languages=("Python",),
+                                                 first_failure=True) if not r.proved]
+        failed_c = [r for r in whole_cycle_results(cfg, c_core=core, languages=("C",), first_failure=True)
+                    if not r.proved]
+    else:
+        failed = [r for r in obligations.integer_results(cfg, d, module) if not r.proved]
+        failed_c = [r for r in obligations.integer_results(cfg, d, obligations.c_code(core)) if not r.proved]
     # caught only when the proof fails on the weakened Python and on the weakened C alike
     row = {"weakening": w.name, "what": w.what, "caught": bool(failed) and bool(failed_c),
            "failed": [r.name for r in failed + failed_c], "replay": None}
+    if w.memory:
+        if replay_all:
+            row["replay"] = memory_replay(w, cfg, core, folder)
+        row["seconds"] = time.perf_counter() - t0
+        return row
     # the replay's declaration (replay.replay_declaration): the proof must fail on it too
     played = replay.replay_declaration(cfg, w.name)
     replay_failed = failed if played == cfg or not replay_all else [
@@ -120,6 +134,31 @@ def weakening_run(job: tuple) -> dict:
     return row
 
 
+def memory_replay(w, cfg: Config, core: Path, folder: Path) -> dict:
+    """A memory weakening played (replay.memory_scenario_text): an oncoming train seen once,
+    then every channel blind, with the weakened and the shipped monitor FMU."""
+    from fmu import build
+    from fmu.acceptance import curves_only_table
+    from monitor.tables import read
+
+    from . import replay
+
+    played = replay.replay_declaration(cfg, w.name)
+    table = curves_only_table(read("m1"))
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "curves-only.rgt").write_bytes(table)
+    fmu = build.build_monitor(table, 2, folder, name="weakened-monitor.fmu", core_dir=core)
+    shipped = build.build_monitor(table, 2, folder, name="shipped-monitor.fmu")
+    train = build.build_train(folder)
+    text, figures = replay.memory_scenario_text(played, f"{w.name} ({w.what}): an oncoming train seen once, then "
+                                                "every channel blind", (folder / "curves-only.rgt").resolve())
+    path = folder / f"{w.name}-oncoming-blind.toml"
+    path.write_text(text)
+    return {"scenario": str(path), "kind": "oncoming, then blind", "point": replay.MEMORY_REPLAY, **figures,
+            "weakened": replay.play(path, fmu, train), "shipped": replay.play(path, shipped, train),
+            "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
+
+
 def replay_rank(entry: dict) -> tuple:
     """Order of replays: a collision of the weakened monitor where the shipped one does not
     collide first, then the weakened monitor's stop margin (smallest first)."""
@@ -131,7 +170,7 @@ def replay_rank(entry: dict) -> tuple:
 
 def prove_task(job: tuple) -> list:
     """One declaration's obligations (a dask task)."""
-    return prove(job[1])
+    return prove(job[1], whole=job[2])
 
 
 def markdown(proofs: list[tuple[str, list]], weak: list[dict]) -> str:
@@ -151,9 +190,10 @@ def section(out_dir, quick: bool, progress, config: Optional[Config] = None):
 
     out_dir = Path(out_dir)
     checks, proofs = [], []
-    todo = declarations(config, quick)
+    todo = [(label, cfg, True) for label, cfg in declarations(config, quick)]     # (the speed error, traction
+    # and gradient each declaration gives feed the memory too: the whole cycle for each)
     cluster = Cluster(min(len(todo), Cluster().size()))
-    for (label, _), results in zip(todo, map_ordered(prove_task, todo, cluster, progress=progress,
+    for (label, _, _), results in zip(todo, map_ordered(prove_task, todo, cluster, progress=progress,
                                                      label="physics: declarations", unit="declarations")):
         progress(f"physics: {label}: {sum(r.proved for r in results)} of {len(results)} obligations proved "
                  f"({sum(r.seconds for r in results):.1f} s of Z3)")

@@ -165,6 +165,17 @@ class Lemmas:
         return z3.And(*self.domain, *(self.kind(kind) if kind else []), *self.reaction, *self.buildup,
                       self.xb <= s_decl, 0 <= self.tb, self.tb <= t_decl, self.D >= self.real.ebi, gap < q(keep))
 
+    def theorem(self, kind: str):
+        """The steps glued by one formula (issue 40 item 5): the phases' dI bounds, each step's
+        conclusion (reaction and build-up within phases 1 and 2, braking within phase 3, the
+        obstacle's travel within the curve's, each proved on its own above) and D >= EBI,
+        against the train ending less than `standstill_margin` short. Refuted if the steps do
+        not compose; the conclusions make the solver's way linear."""
+        p = self.real.phases
+        steps = [self.x1 <= p["s1"], self.v1 <= p["v1"], self.x2 <= p["s2"], self.v2 <= p["v2"], self.xb <= p["s3"],
+                 self.tb <= p["t3"], self.closed <= p["w"] * (p["t1"] + p["t2"] + p["t3"])]
+        return z3.And(self.ends_short_of(self.d.margin, kind), *steps)
+
     def sum_step(self) -> object:
         """The bands' bounds add up (linear): each band within its bound b_i (the band steps),
         the bounds' sum within the curve's phase 3 (the monotone step) => the whole braking
@@ -247,6 +258,11 @@ def sufficiency_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Re
         for track, brake, cond in SERVICE_CONDITIONS if service else CONDITIONS:
             lemmas = Lemmas(d, service, track, brake, periods=CONTRACT_ZONE_PERIODS if service else CONTRACT_PERIODS)
             steps = [(s, None) for s in lemmas.steps()] + [(s, k) for k in KINDS for s in lemmas.kind_steps(k)]
+            # the theorem (issue 40 item 5): the steps glued by one formula Z3 checks, from the
+            # phases' dI bounds and the bands' bound to "stops standstill_margin short"
+            steps += [(("theorem: the whole chain in one formula, from the phases' bounds to stopping "
+                        f"standstill_margin short ({kind})", "composition", lemmas.theorem(kind)), kind)
+                      for kind in KINDS]
             for (name, phase, formula), kind in steps:
                 r = Result(f"{curve}, {cond}: {name}", "sufficiency", phase,
                            context={"service": service, "kind": kind, "track": track, "brake": brake})
@@ -354,9 +370,10 @@ def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIME
 
 
 def check_all(cfg: Config, braking, timeout_ms: int = TIMEOUT_MS,
-              progress: Callable[[str], None] = lambda _: None, core_dir=None) -> list[Result]:
-    """Every obligation: the phases, sufficiency, the release rule, and the integer curves of
-    braking.py (`braking`) and of the C core (`core_dir`, default the shipped one)."""
+              progress: Callable[[str], None] = lambda _: None, core_dir=None, whole: bool = True) -> list[Result]:
+    """Every obligation: the phases and the build-up equivalence, sufficiency, the release
+    rule, the whole cycle (`whole`: Python and C), and the integer curves of braking.py (`braking`) and of the C core
+    (`core_dir`, default the shipped one)."""
     d = Declaration.of(cfg)
     out = invariant_results(d, timeout_ms)
     progress(f"physics: {len(out)} differential invariants")
@@ -366,5 +383,12 @@ def check_all(cfg: Config, braking, timeout_ms: int = TIMEOUT_MS,
 
     rel = release_results(cfg, d, timeout_ms)
     progress(f"physics: the release rule over one cycle: {sum(r.proved for r in rel)} of {len(rel)} proved")
-    return (out + suff + rel + integer_results(cfg, d, braking, timeout_ms, progress)
+    from .buildup import buildup_results
+    from .whole_cycle import whole_cycle_results
+
+    build = buildup_results(d)
+    progress(f"physics: the build-up equivalence: {sum(r.proved for r in build)} of {len(build)} proved")
+    cycle = whole_cycle_results(cfg, c_core=core_dir, timeout_ms=timeout_ms) if whole else []
+    progress(f"physics: the whole cycle (Python and C): {sum(r.proved for r in cycle)} of {len(cycle)} proved")
+    return (out + build + suff + rel + cycle + integer_results(cfg, d, braking, timeout_ms, progress)
             + integer_results(cfg, d, c_code(core_dir), timeout_ms, progress))

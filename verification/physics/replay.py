@@ -147,19 +147,10 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     position = seen_at + run + obstacle * APPROACH_S
     worst = min(a for _, a in emergency_bands(cfg)) / 1000 - 9.81 * cfg.max_gradient_permille / 1000
     duration = APPROACH_S + cfg.emergency_buildup_ms / 1000 + cfg.traction_cutoff_ms / 1000 + true_speed / worst + 20
-    bands = [[lo / 100, a / 1000] for lo, a in emergency_bands(cfg)]
     lines = [f"description = {json.dumps(title)}", f"duration_s = {duration:.1f}", "demand_delay_cycles = 1",
              f"table = {json.dumps(str(table))}  # the curves alone: the table never asks for braking", "",
-             "[train]  # the declaration's corner: guaranteed deceleration, the whole build-up as dead time,",
-             "         # full traction until the cut-off, the steepest downhill, the speed under-reported",
-             f"speed_mps = {start_speed:.4f}  # {true_speed:.2f} m/s at the first reading, {APPROACH_S} s later",
-             f"cruise_speed_mps = {cruise:.2f}  # " + ("above every speed it reaches: full traction until the demand"
-                                                      if pulling else "cruising, coasting downhill"),
-             f"emergency_decel_mps2 = {json.dumps(bands if len(bands) > 1 else bands[0][1])}",
-             f"service_decel_mps2 = {cfg.service_decel_mms2 / 1000}",
-             f"brake_delay_s = {cfg.emergency_buildup_ms / 1000}", "brake_buildup_s = 0.0",
-             f"traction_cutoff_s = {cfg.traction_cutoff_ms / 1000}", f"max_traction_mps2 = {cfg.max_accel_mms2 / 1000}",
-             f"gradient_permille = {-cfg.max_gradient_permille}", f"speed_error = {e}", "",
+             *corner_train(cfg, start_speed, cruise, pulling,
+                           f"{true_speed:.2f} m/s at the first reading, {APPROACH_S} s later"), "",
              "[[obstacles]]", f"position_m = {position:.4f}", f"speed_mps = {-obstacle:.2f}",
              f"type = \"{'train' if obstacle > 0 else 'static'}\"", "",
              f"[sensors]  # first reading a cycle's travel inside the shipped EBI ({ebi_shipped:.1f} m), outside "
@@ -168,6 +159,58 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     lines += [f"{k} = {json.dumps(v)}" for k, v in declaration_si(cfg).items()]
     return "\n".join(lines) + "\n", {"true_speed_mps": true_speed, "obstacle_speed_mps": obstacle,
                                       "ebi_shipped_m": ebi_shipped, "ebi_weakened_m": ebi_weak}
+
+
+def corner_train(cfg: Config, start_speed: float, cruise: float, pulling: bool, when: str) -> list[str]:
+    """The scenario's [train] at the declaration's corner: guaranteed deceleration, the whole
+    build-up as dead time, full traction until the cut-off, the steepest downhill, the speed
+    under-reported by the whole error."""
+    import json
+
+    bands = [[lo / 100, a / 1000] for lo, a in emergency_bands(cfg)]
+    return ["[train]  # the declaration's corner: guaranteed deceleration, the whole build-up as dead time,",
+            "         # full traction until the cut-off, the steepest downhill, the speed under-reported",
+            f"speed_mps = {start_speed:.4f}  # {when}",
+            f"cruise_speed_mps = {cruise:.2f}  # " + ("above every speed it reaches: full traction until the demand"
+                                                     if pulling else "cruising, coasting downhill"),
+            f"emergency_decel_mps2 = {json.dumps(bands if len(bands) > 1 else bands[0][1])}",
+            f"service_decel_mps2 = {cfg.service_decel_mms2 / 1000}",
+            f"brake_delay_s = {cfg.emergency_buildup_ms / 1000}", "brake_buildup_s = 0.0",
+            f"traction_cutoff_s = {cfg.traction_cutoff_ms / 1000}", f"max_traction_mps2 = {cfg.max_accel_mms2 / 1000}",
+            f"gradient_permille = {-cfg.max_gradient_permille}", f"speed_error = {cfg.speed_error_permille / 1000}"]
+
+
+# A memory weakening's replay (issue 40 item 2): an oncoming train seen once, far beyond the
+# shipped warning curve, then every channel blind (fresh ABSENT, beyond the declared sensor
+# range: no evidence that it is gone) while the remembered obstacle closes in; the sensors see
+# again only after the shipped monitor stands. What the memory predicts is all that brakes.
+MEMORY_REPLAY = {"train_mps": 30.0, "obstacle_mps": 25.0, "beyond_warning_m": 600.0, "approach_s": 3.0,
+                 "blind_after_s": 0.2, "blind_s": 16.0}
+
+
+def memory_scenario_text(cfg: Config, title: str, table: Path) -> tuple[str, dict]:
+    """The scenario (MEMORY_REPLAY) and its figures, on `cfg` (replay_declaration's)."""
+    import json
+
+    from monitor.core import braking as shipped
+
+    m = MEMORY_REPLAY
+    v, w = m["train_mps"], m["obstacle_mps"]
+    c = shipped.curves(cfg, round(v * 100), 0, 0, round((v + w) * 100), 0)
+    seen_at = c.warning_dm / 10 + m["beyond_warning_m"]
+    blind_from = m["approach_s"] + m["blind_after_s"]
+    lines = [f"description = {json.dumps(title)}", "duration_s = 80.0", "demand_delay_cycles = 1",
+             f"table = {json.dumps(str(table))}  # the curves alone: the table never asks for braking", "",
+             *corner_train(cfg, v, v + 20, True, "pulling until the demand"), "",
+             "[[obstacles]]", f"position_m = {seen_at + (v + w) * m['approach_s']:.2f}", f"speed_mps = {-w}",
+             'type = "train"', "", f"[sensors]  # first seen {m['beyond_warning_m']:.0f} m beyond the shipped warning "
+             f"curve ({c.warning_dm / 10:.1f} m; EBI {c.ebi_dm / 10:.1f} m)", f"range_m = {seen_at:.2f}",
+             "noise_sigma_m = 0.0", "", "[[faults]]", 'kind = "blind"', f"start_s = {blind_from}",
+             f"end_s = {blind_from + m['blind_s']}", "", "[braking]"]
+    lines += [f"{k} = {json.dumps(x)}" for k, x in declaration_si(cfg).items()]
+    figures = {"true_speed_mps": v, "obstacle_speed_mps": w, "ebi_shipped_m": c.ebi_dm / 10,
+               "ebi_weakened_m": c.ebi_dm / 10, "seen_at_m": seen_at, "blind_s": m["blind_s"]}
+    return "\n".join(lines) + "\n", figures
 
 
 def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path: Path,

@@ -31,9 +31,10 @@ def proofs_md(proofs: list, assumptions: tuple) -> str:
 
 def weakenings_md(rows: list) -> str:
     md = ["\n### Planted weakenings\n",
-          "Each is the same edit to `monitor/core/braking.py` and `fmu/c/core/rg_core.c` "
-          "(verification/physics/weakenings.py). The proof must fail on the weakened Python and on the weakened "
-          "C. Its counterexample (the fastest playable point where the weakened EBI falls short of the real one "
+          "Each is the same edit to the Python (`monitor/core/braking.py`; for the memory's feed, `cycle.py` or "
+          "`memory.py`) and to `fmu/c/core/rg_core.c` (verification/physics/weakenings.py). The proof must fail "
+          "on the weakened Python and on the weakened C: a curve's edit fails an integer obligation, a memory "
+          "edit the whole cycle's (whole_cycle.py). A curve's counterexample (the fastest playable point where the weakened EBI falls short of the real one "
           "by more than a cycle's travel; for an oncoming obstacle, the largest shortfall) is written as a cosim "
           "scenario on the declaration with speed error 0 (the speed error's own weakening keeps it): the "
           "world's train at the declaration's corner, pulling at full traction until the demand or cruising, "
@@ -42,8 +43,9 @@ def weakenings_md(rows: list) -> str:
     table = []
     for r in rows:
         rp = r["replay"]
-        if rp is None:
-            table.append([r["weakening"], "yes" if r["caught"] else "**no**", len(r["failed"]), "-", "-", "-"])
+        if rp is None:                  # why no replay: the report says (issue 40 item 5)
+            why = r.get("replay_note") or "no playable point: no obligation on a playable curve failed"
+            table.append([r["weakening"], "yes" if r["caught"] else "**no**", len(r["failed"]), why, "-", "-"])
             continue
         table.append([r["weakening"], "yes" if r["caught"] else "**no**", len(r["failed"]),
                       f"{rp['kind']}, {rp['true_speed_mps']:.1f} m/s, EBI {rp['ebi_shipped_m']:.1f} -> "

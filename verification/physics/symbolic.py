@@ -33,8 +33,10 @@ class Unsupported(TypeError):
 class Explorer:
     """Chooses branch sides; each run of the function follows one path."""
 
-    def __init__(self, domain: list, timeout_ms: int = 20000):
+    def __init__(self, domain: list, timeout_ms: int = 20000, cone: bool = False):
         self.domain = list(domain)
+        self.cone = cone                     # check a branch against the constraints it depends on only
+        self._vars: dict = {}
         self.side_conditions: list = []      # floor-division constraints, path-independent
         self.timeout_ms = timeout_ms
         self.forced: list[tuple[bool, bool, bool]] = []   # the prefix to replay, with its unexplored sides
@@ -46,10 +48,45 @@ class Explorer:
     def fresh(self, hint: str) -> z3.ArithRef:
         return z3.Real(f"{hint}!{next(self._fresh)}")
 
+    def variables(self, e) -> frozenset:
+        key = e.get_id()
+        if key not in self._vars:
+            seen, todo, out = set(), [e], set()
+            while todo:
+                t = todo.pop()
+                if t.get_id() in seen:
+                    continue
+                seen.add(t.get_id())
+                if z3.is_const(t) and t.decl().kind() == z3.Z3_OP_UNINTERPRETED:
+                    out.add(t.decl().name())
+                todo.extend(t.children())
+            self._vars[key] = (e, frozenset(out))        # (e kept alive: Z3 reuses a freed term's id)
+        return self._vars[key][1]
+
+    def relevant(self, extra) -> list:
+        """The constraints that share variables with `extra`, transitively (its cone of
+        influence). Leaving the others out can only find more branch sides feasible: an
+        extra path, whose full condition the proof then refutes or finds infeasible; sound."""
+        pool = [*self.domain, *self.side_conditions, *self.condition]
+        names, chosen, grew = set(self.variables(extra)), [], True
+        left = list(pool)
+        while grew:
+            grew, rest = False, []
+            for c in left:
+                vs = self.variables(c)
+                if vs & names:
+                    names |= vs
+                    chosen.append(c)
+                    grew = True
+                else:
+                    rest.append(c)
+            left = rest
+        return chosen
+
     def feasible(self, extra) -> bool:
         s = z3.Solver()
         s.set("timeout", self.timeout_ms)
-        s.add(*self.domain, *self.side_conditions, *self.condition, extra)
+        s.add(*(self.relevant(extra) if self.cone else [*self.domain, *self.side_conditions, *self.condition]), extra)
         result = s.check()
         if result == z3.unknown:
             return True                      # cannot rule it out: follow it (sound)
@@ -63,7 +100,9 @@ class Explorer:
         else:
             can_true, can_false = self.feasible(cond), self.feasible(z3.Not(cond))
             if not (can_true or can_false):
-                raise Unsupported("a branch with neither side feasible: the path condition is inconsistent")
+                if not self.cone:
+                    raise Unsupported("a branch with neither side feasible: the path condition is inconsistent")
+                can_true = True              # an infeasible path the cone let in: followed, vacuous
             side = can_true
             needed = can_true and can_false       # else the side taken is implied: no need to carry it
             self.taken.append((side, needed, needed))
@@ -98,6 +137,15 @@ class SymBool:
 
     def __bool__(self) -> bool:
         return self.ex.decide(self.term)
+
+    # a flag compared as a value (a sort key such as `(near == NO_TRACK, near)`): decided first
+    def __eq__(self, o): return bool(self) == bool(o)      # type: ignore[override]
+    def __ne__(self, o): return bool(self) != bool(o)      # type: ignore[override]
+    def __lt__(self, o): return bool(self) < bool(o)
+    def __le__(self, o): return bool(self) <= bool(o)
+    def __gt__(self, o): return bool(self) > bool(o)
+    def __ge__(self, o): return bool(self) >= bool(o)
+    __hash__ = None                                           # type: ignore[assignment]
 
 
 class SymInt:
@@ -173,13 +221,16 @@ def _unwrap(v):
     return v
 
 
-def explore(fn: Callable, inputs: dict, domain: list, max_paths: int = 4096, timeout_ms: int = 20000) -> list[Path]:
+def explore(fn: Callable, inputs: dict, domain: list, max_paths: int = 4096, timeout_ms: int = 20000,
+            cone: bool = False) -> list[Path]:
     """Every feasible path of fn(**args), where `inputs` maps argument names to Z3 reals or to
-    concrete values and `domain` constrains the reals (their ranges)."""
-    ex = Explorer(domain, timeout_ms)
+    concrete values and `domain` constrains the reals (their ranges). `cone`: decide each
+    branch on the constraints it depends on (Explorer.relevant): more paths, each cheaper."""
+    ex = Explorer(domain, timeout_ms, cone)
     paths = []
     while True:
         ex.side_conditions = []
+        ex._fresh = itertools.count()        # the same names along a shared prefix: paths comparable
         args = {k: SymInt(ex, v) if isinstance(v, z3.ArithRef) else v for k, v in inputs.items()}
         value = fn(**args)
         paths.append(Path(list(ex.condition), list(ex.side_conditions), _unwrap(value)))

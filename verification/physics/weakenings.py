@@ -28,8 +28,14 @@ class WeakeningError(RuntimeError):
 class Weakening:
     name: str
     what: str
-    python: tuple          # ((old, new), ...) in braking.py
+    python: tuple          # ((old, new), ...) in monitor/core/<module>.py
     c: tuple               # ((old, new), ...) in rg_core.c or rg_core.h
+    module: str = "braking"    # the Python module edited: braking (the curves), cycle or memory (the memory's feed)
+
+    @property
+    def memory(self) -> bool:
+        """An edit of what the step feeds the memory: the whole-cycle proof must catch it."""
+        return self.module != "braking"
 
 
 WEAKENINGS = (
@@ -57,6 +63,15 @@ WEAKENINGS = (
                 "    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm\n"),),
               (("    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3);",
                 "    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm;"),)),
+    # issue 40 item 2: the memory's feed, which the pieces' proofs could not see
+    Weakening("memory-moved-at-half", "the caller moves a remembered obstacle at half its closing speed",
+              (("setup.track_accel, t.closing,\n", "setup.track_accel, t.closing // 2,\n"),),
+              (("rg_near_travel(speed, err, track_accel, next_tracks[i].closing,",
+                "rg_near_travel(speed, err, track_accel, next_tracks[i].closing / 2,"),), module="cycle"),
+    Weakening("memory-half-speed", "observe remembers half an oncoming obstacle's speed",
+              (("    own = obstacle_cms if obstacle_cms > 0 else 0\n", "    own = obstacle_cms // 2 if obstacle_cms > 0 else 0\n"),),
+              (("    const int32_t own = obstacle_cms > 0 ? obstacle_cms : 0;",
+                "    const int32_t own = obstacle_cms > 0 ? obstacle_cms / 2 : 0;"),), module="memory"),
 )
 
 
@@ -75,9 +90,18 @@ def edit(text: str, edits: tuple, where: str) -> str:
     return text
 
 
+def weakened_sources(w: Weakening) -> dict:
+    """{module: edited text} of a memory weakening, for whole_cycle.python_step."""
+    path = REPO / "monitor" / "core" / f"{w.module}.py"
+    return {w.module: edit(path.read_text(), w.python, f"monitor/core/{w.module}.py")}
+
+
 def weakened_braking(w: Weakening) -> ModuleType:
     """monitor/core/braking.py with the weakening applied, as a module of its own package
     (its relative imports resolve as the shipped one's do)."""
+    if w.memory:                        # the curves are the shipped ones
+        from monitor.core import braking
+        return braking
     name = f"monitor.core._braking_{w.name.replace('-', '_')}"
     spec = importlib.util.spec_from_loader(name, loader=None, origin=str(BRAKING_PY))
     module = importlib.util.module_from_spec(spec)

@@ -1469,15 +1469,16 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     int32_t agree[RG_MAX_MODULES];
     uint32_t seen = s->seen;
     int32_t stale = 0, implausible = 0, have_closing = 0, closing = 0, obstacle = 0, age = 0, flags = 0, perceptor = 0;
-    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, confirmed, sighted, keep;
+    int32_t sys_status, distance, sys_error, present, toward, warn, own_speed, own_speed_up, confirmed, sighted, keep;
     int32_t speed, track, brake, train_ok, env, z, obs, error, dispute, overrun_limit, healthy, mode;
     int32_t node, table_demand, reasons, error_demand, demand, held, calm, final_demand, error_cycles;
     int32_t t_dm, t_state, t_cycles, slot, create, evidence_absent, first_state, first_lost;
     int32_t nearest, worst, worst_env, worst_warn, memory_reason;
     int32_t spd, near_dm, alpha1 = 1, alpha2 = 0, r1, r2, score;
     int32_t i, m;
-    rg_track_slot tracks[RG_TRACKS];
-    int32_t ages[RG_TRACKS], states[RG_TRACKS];
+    rg_track_slot tracks[RG_TRACKS], next_tracks[RG_TRACKS];
+    int32_t ages[RG_TRACKS], states[RG_TRACKS], next_ages[RG_TRACKS], next_states[RG_TRACKS], watched[RG_TRACKS];
+    rg_curve_set tcurves[RG_TRACKS];
     rg_decision dec;
     rg_curve_set curve = {0, 0, 0, 0}, tcurve = {0, 0, 0, 0};
 
@@ -1577,6 +1578,9 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         brake = 1;
     }
     own_speed = (int32_t)((int64_t)speed * (1000 - err) / 1000);   /* the train's share of a closing speed */
+    /* and back: a remembered own speed plus the train's least speed rounded up, so that no curve
+     * counts less of the obstacle's speed than the memory holds (issue 40 item 2) */
+    own_speed_up = (int32_t)(((int64_t)speed * (1000 - err) + 999) / 1000);
     present = distance != RG_NO_DISTANCE;
     toward = have_closing ? closing : speed;
     confirmed = present && sys_status == RG_PRESENT && !sys_error;
@@ -1659,13 +1663,41 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     t_dm = rg_track_dm(tracks[0].near);
     t_state = first_lost ? first_state : (tracks[0].near != RG_NO_TRACK ? states[0] : RG_TRACK_NONE);
     t_cycles = first_lost ? 0 : tracks[0].cycles;
+    /* the remembered obstacles as the next cycle finds them, from the memory alone: moved for
+       the next period, worst case for the train; after a sighting also for the report's age
+       (the remembered curves count no age: it is counted once, at the speed of the cycle that
+       saw it); then in order (cycle.moved_tracks) */
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        next_tracks[i] = tracks[i];
+        next_ages[i] = ages[i];
+        next_states[i] = states[i];
+        if (next_tracks[i].near != RG_NO_TRACK) {
+            const int64_t near = (int64_t)next_tracks[i].near
+                                 - rg_near_travel(speed, err, track_accel, next_tracks[i].closing,
+                                                  (int64_t)cfg->period_ms + ages[i]);
+            next_tracks[i].near = near > 0 ? (int32_t)near : 0;
+        }
+    }
+    rg_ordered(next_tracks, next_ages, next_states);
 
     /* 5. braking curves at the measured speed for the voted obstacle and for every remembered
-     *    one (unless it is the confirmed picture itself), under the reported conditions; the
-     *    highest demand counts (rg_decide); the table's zones under normal ones; the
-     *    observation reads the voted picture alone */
+     *    one (its closing speed and the age of a sighting it took this cycle), unless it is the
+     *    confirmed picture itself, under the reported conditions; the highest demand counts
+     *    (rg_decide); the table's zones under normal ones; the observation reads the voted
+     *    picture alone. Every curve is computed before anything is decided from them (the proof
+     *    of the whole cycle follows the step to there: verification/physics/whole_cycle.py) */
+    if (present) rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
+    /*@ loop pragma UNROLL RG_TRACKS + 1; */
+    for (i = 0; i < RG_TRACKS; i++) {
+        tcurves[i] = curve;
+        watched[i] = tracks[i].near != RG_NO_TRACK
+                     && !(confirmed && tracks[i].near == (int64_t)distance * RG_UNITS_PER_DM);
+        if (watched[i])
+            rg_curves(cfg, speed, track, brake, tracks[i].closing + own_speed_up, ages[i], 0, RG_SUPERVISED_PERIODS,
+                      &tcurves[i]);
+    }
     if (present) {
-        rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
         zone_limits(cfg, speed, toward, age, &alpha1, &alpha2);
         z = rg_zone(distance, alpha1, alpha2, cfg->warning_margin_dm);
     } else {
@@ -1683,17 +1715,14 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     memory_reason = 0;
     /*@ loop pragma UNROLL RG_TRACKS + 1; */
     for (i = 0; i < RG_TRACKS; i++) {
-        rg_curve_set c;
         int32_t env_i, warn_i;
-        if (tracks[i].near == RG_NO_TRACK || (confirmed && tracks[i].near == (int64_t)distance * RG_UNITS_PER_DM))
-            continue;
-        rg_curves(cfg, speed, track, brake, tracks[i].closing + own_speed, ages[i], 0, RG_SUPERVISED_PERIODS, &c);
-        env_i = rg_remembered_demand(rg_track_dm(tracks[i].near), &c, s->held, &warn_i);
+        if (!watched[i]) continue;
+        env_i = rg_remembered_demand(rg_track_dm(tracks[i].near), &tcurves[i], s->held, &warn_i);
         if (worst < 0 || env_i > worst_env || (env_i == worst_env && warn_i > worst_warn)) {
             worst = i;
             worst_env = env_i;
             worst_warn = warn_i;
-            tcurve = c;
+            tcurve = tcurves[i];
         }
         if (nearest < 0) nearest = i;
         if (states[i] != RG_TRACK_SEEN) memory_reason = 1;
@@ -1706,7 +1735,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     near_dm = distance;
     if (nearest >= 0 && (distance == RG_NO_DISTANCE || rg_track_dm(tracks[nearest].near) < distance)) {
         near_dm = rg_track_dm(tracks[nearest].near);
-        zone_limits(cfg, speed, tracks[nearest].closing + own_speed, ages[nearest], &alpha1, &alpha2);
+        zone_limits(cfg, speed, tracks[nearest].closing + own_speed_up, ages[nearest], &alpha1, &alpha2);
     } else if (distance == RG_NO_DISTANCE && sys_status == RG_DEGRADED) {
         near_dm = 0;
         zone_limits(cfg, speed, speed, 0, &alpha1, &alpha2);
@@ -1788,19 +1817,6 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     }
     if (warn) reasons |= RG_R_WARNING;
 
-    /* every remembered obstacle moved for the next period, worst case for the train; after a
-       sighting also for the report's age (the remembered curves count no age: it is counted
-       once, at the speed of the cycle that saw it); then in order again */
-    /*@ loop pragma UNROLL RG_TRACKS + 1; */
-    for (i = 0; i < RG_TRACKS; i++) {
-        if (tracks[i].near != RG_NO_TRACK) {
-            const int64_t near = (int64_t)tracks[i].near - rg_near_travel(speed, err, track_accel, tracks[i].closing,
-                                                                          (int64_t)cfg->period_ms + ages[i]);
-            tracks[i].near = near > 0 ? (int32_t)near : 0;
-        }
-    }
-    rg_ordered(tracks, ages, states);
-
     error_cycles = (error || stale) ? inc(s->error_cycles) : s->error_cycles;
     s->mode = mode;
     s->node = node;
@@ -1815,7 +1831,7 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     s->error_cycles = error_cycles;
     s->calm = calm;
     s->table_held = mode != RG_INIT ? table_demand : RG_MAINTAIN;
-    for (i = 0; i < RG_TRACKS; i++) s->tracks[i] = tracks[i];
+    for (i = 0; i < RG_TRACKS; i++) s->tracks[i] = next_tracks[i];
     s->kept = keep && speed > 0 && held > RG_MAINTAIN;
 
     out->demand = final_demand;
