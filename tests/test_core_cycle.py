@@ -808,6 +808,8 @@ def test_curves_are_ordered_and_grow_with_speed_and_adverse_conditions():
     (dict(persistence_cycles=1001), "persistence_cycles"),
     (dict(timeout_cycles=601), "timeout_cycles"),
     (dict(emergency_band2_mms2=0), "emergency_band2_mms2"),
+    (dict(emergency_band2_mms2=2500), "emergency_band2_mms2"),        # rises with speed (issue 40 item 4)
+    (dict(emergency_band3_cms=5000, emergency_band3_mms2=2300), "emergency_band3_mms2"),
     (dict(emergency_band3_cms=2000), "emergency_band3_cms"),
     (dict(service_decel_mms2=2300), "service_decel_mms2"),
     (dict(slippery_permille=1001), "slippery_permille"),

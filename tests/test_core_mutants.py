@@ -777,7 +777,7 @@ def test_defaults_are_the_documented_ones_and_the_papers_train():
 
 # (field, lowest accepted, highest accepted); one step beyond either end is refused
 BOUNDS = [("period_ms", 1, 10000), ("timeout_cycles", 1, 600), ("persistence_cycles", 1, 1000),
-          ("emergency_decel_mms2", 800, 20000), ("service_decel_mms2", 531, 2200),
+          ("emergency_decel_mms2", 2200, 20000), ("service_decel_mms2", 531, 2200),
           ("emergency_buildup_ms", 0, 30000), ("service_buildup_ms", 0, 30000), ("traction_cutoff_ms", 0, 30000),
           ("max_accel_mms2", 0, 5000), ("speed_error_permille", 0, 500), ("max_gradient_permille", 0, 60, 2200),
           ("standstill_margin_dm", 0, 10000), ("warning_ms", 0, 60000), ("emergency_release", 0, 1),
@@ -792,7 +792,7 @@ def test_every_configuration_bound_is_exact(bound):
     """Each configuration value is accepted at both ends of its range and refused one step
     beyond (ConfigurationError), on the shipped configuration otherwise: there the
     decelerations' ends are where the band order and the worst case bite (service 531..2200,
-    emergency from 800), timeout_cycles ends at 60 s / 100 ms, and the gradient is checked
+    emergency from 2200, band 2's: the guaranteed deceleration only falls with speed), timeout_cycles ends at 60 s / 100 ms, and the gradient is checked
     up to 60 per mille with a service brake of 2200 mm/s^2."""
     from monitor.core.config import ConfigurationError, check
 
@@ -862,7 +862,10 @@ def test_speed_bands_are_checked_in_order():
                 dict(service_decel_mms2=2201), dict(emergency_band3_cms=3001, emergency_band3_mms2=799)):
         with pytest.raises(ConfigurationError):
             check(cfg._replace(**bad))
-    check(cfg._replace(emergency_band3_cms=12000, emergency_band3_mms2=20000))
+    check(cfg._replace(emergency_band3_cms=12000, emergency_band3_mms2=2200))       # equal to band 2: accepted
+    for rising in (dict(emergency_band3_cms=12000, emergency_band3_mms2=2201), dict(emergency_band2_mms2=2401)):
+        with pytest.raises(ConfigurationError, match="may only fall with speed"):      # (issue 40 item 4)
+            check(cfg._replace(**rising))
     check(cfg._replace(emergency_band3_cms=3001, emergency_band3_mms2=800))
     check(cfg._replace(service_decel_mms2=2200))
     check(cfg._replace(emergency_band2_cms=0, emergency_band2_mms2=0, emergency_band3_mms2=-5))
@@ -898,7 +901,7 @@ def test_gradient_acceleration_is_g_times_gradient_rounded_up():
 def test_configuration_refusals_name_the_first_bad_value_and_why():
     """config.check refuses with the first value that cannot be used and the reason, in its
     documented order: a deceleration of 1 mm/s^2 is in range but weaker than the service
-    brake (so is a band's); an adhesion factor of 1 per mille is in range but leaves no
+    brake (so is a band's), and a band may not brake better than the one below it; an adhesion factor of 1 per mille is in range but leaves no
     guaranteed deceleration; a service brake of 1 mm/s^2 is in range but too weak on the downhill; band 3 at
     -1 cm/s is out of range (not merely below band 2); band 2 may start at 1 cm/s; a report
     may be at most 60 s old whatever the period."""
@@ -909,7 +912,8 @@ def test_configuration_refusals_name_the_first_bad_value_and_why():
             check(Config(**kw))
         return str(exc.value)
 
-    assert refusal(emergency_decel_mms2=1).startswith("service_decel_mms2 = 800: must not exceed")
+    assert refusal(emergency_decel_mms2=1).startswith("emergency_band2_mms2 = 2200: must not exceed the band below")
+    assert refusal(emergency_band2_cms=0, emergency_decel_mms2=1).startswith("service_decel_mms2 = 800: must not exceed")
     assert refusal(emergency_decel_mms2=0).startswith("emergency_decel_mms2 = 0: a deceleration must be 1..20000")
     assert refusal(service_decel_mms2=1).startswith("service_decel_mms2 = 1: too weak")
     assert refusal(service_decel_mms2=0).startswith("service_decel_mms2 = 0: a deceleration must be 1..20000")

@@ -364,6 +364,8 @@ BAD_PARAMETERS = [
     ("emergency_band2_cms", {"emergency_band2_cms": 12001}),
     ("emergency_band3_cms", {"emergency_band3_cms": 2000}),            # below band 2 (3000 cm/s)
     ("emergency_band2_mms2", {"emergency_band2_mms2": 0}),
+    ("emergency_band2_mms2", {"emergency_band2_mms2": 2500}),          # rises above band 1's 2400 (issue 40)
+    ("emergency_band3_mms2", {"emergency_band3_cms": 5000, "emergency_band3_mms2": 2300}),   # above band 2's 2200
     ("emergency_band3_mms2", {"emergency_band3_cms": 5000, "emergency_band3_mms2": 20001}),
     ("emergency_buildup_ms", {"emergency_buildup_ms": -1}),
     ("traction_cutoff_ms", {"traction_cutoff_ms": 30001}),

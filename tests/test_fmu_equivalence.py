@@ -103,10 +103,10 @@ def draw_declaration(b: Bytes) -> dict:
     bands = b.u8() % 3
     if bands:
         d["emergency_band2_cms"] = 1 + b.u16() % 11000
-        d["emergency_band2_mms2"] = decel()
+        d["emergency_band2_mms2"] = min(decel(), d["emergency_decel_mms2"])   # falling with speed (issue 40)
     if bands == 2:
         d["emergency_band3_cms"] = d["emergency_band2_cms"] + 1 + b.u16() % (12000 - d["emergency_band2_cms"])
-        d["emergency_band3_mms2"] = decel()
+        d["emergency_band3_mms2"] = min(decel(), d["emergency_band2_mms2"])
     for name in ("emergency_buildup_ms", "service_buildup_ms", "traction_cutoff_ms"):
         d[name] = b.pick([0, 800, 1000, 2000, b.u16() % 30001])
     d["max_accel_mms2"] = b.pick([0, 500, b.u16() % 5001])

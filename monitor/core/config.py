@@ -103,6 +103,13 @@ def check(cfg: Config) -> None:
         if getattr(cfg, f"emergency_band{band}_cms"):
             name = f"emergency_band{band}_mms2"
             need(1 <= getattr(cfg, name) <= 20000, name, "a deceleration must be 1..20000 mm/s^2 (magnitude)")
+    # the equivalent build-up covers a linear ramp only if the guaranteed deceleration never
+    # rises with speed (issue 40 item 4: verification/physics/buildup.py refutes it otherwise)
+    for band, below in ((2, cfg.emergency_decel_mms2), (3, cfg.emergency_band2_mms2)):
+        if getattr(cfg, f"emergency_band{band}_cms"):
+            name = f"emergency_band{band}_mms2"
+            need(getattr(cfg, name) <= below, name, f"must not exceed the band below it ({below} mm/s^2): the "
+                 "guaranteed deceleration may only fall with speed (the build-up proof, docs/proof.md)")
     need(cfg.service_decel_mms2 <= min(a for _, a in emergency_bands(cfg)), "service_decel_mms2",
          "must not exceed the guaranteed emergency deceleration of any speed band")
     for name in ("emergency_buildup_ms", "service_buildup_ms", "traction_cutoff_ms"):

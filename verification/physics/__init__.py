@@ -100,11 +100,10 @@ def weakening_run(job: tuple) -> dict:
             row["replay"] = memory_replay(w, cfg, core, folder)
         row["seconds"] = time.perf_counter() - t0
         return row
-    # the replay's declaration (replay.replay_declaration): the proof must fail on it too
+    # the replay's declaration (replay.replay_declaration): worst_point finds the point where
+    # the weakened curve falls short of the real one on it (a counterexample there too), or none
     played = replay.replay_declaration(cfg, w.name)
-    replay_failed = failed if played == cfg or not replay_all else [
-        r for r in obligations.integer_results(played, Declaration.of(played), module) if not r.proved]
-    target = next((r for r in replay_failed if r.context["curve"] == "ebi" and not r.context["service"]
+    target = next((r for r in failed if r.context["curve"] == "ebi" and not r.context["service"]
                    and not r.context["track"] and not r.context["brake"]), None)
     row["replay_declaration"] = {"speed_error_permille": played.speed_error_permille}
     if target is not None and replay_all:

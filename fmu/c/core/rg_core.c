@@ -71,6 +71,7 @@ static int refuse(char *msg, size_t len, const char *name, long long value, cons
 static const char DECEL_WHY[] = "a deceleration must be 1..20000 mm/s^2 (magnitude)";
 static const char BAND_WHY[] = "must be 0 (no band) or a speed up to 12000 cm/s";
 static const char TIME_WHY[] = "must be 0..30000 ms";
+static const char FALL_WHY[] = "must not exceed the band below it: the guaranteed deceleration may only fall with speed";
 static const char FACTOR_WHY[] =
     "a deceleration factor must be 1..1000 per mille (adverse conditions never brake better)";
 
@@ -106,6 +107,11 @@ static int check_declaration(const rg_config *c, char *msg, size_t len)
         return refuse(msg, len, "emergency_band2_mms2", c->emergency_band2_mms2, DECEL_WHY);
     if (c->emergency_band3_cms != 0 && (c->emergency_band3_mms2 < 1 || c->emergency_band3_mms2 > 20000))
         return refuse(msg, len, "emergency_band3_mms2", c->emergency_band3_mms2, DECEL_WHY);
+    /* the equivalent build-up covers a linear ramp only if the deceleration never rises with speed */
+    if (c->emergency_band2_cms != 0 && c->emergency_band2_mms2 > c->emergency_decel_mms2)
+        return refuse(msg, len, "emergency_band2_mms2", c->emergency_band2_mms2, FALL_WHY);
+    if (c->emergency_band3_cms != 0 && c->emergency_band3_mms2 > c->emergency_band2_mms2)
+        return refuse(msg, len, "emergency_band3_mms2", c->emergency_band3_mms2, FALL_WHY);
     weakest = weakest_band(c);
     if (c->service_decel_mms2 > weakest)
         return refuse(msg, len, "service_decel_mms2", c->service_decel_mms2,
