@@ -5,8 +5,9 @@ and silence brakes. A valid frame (E2E CRC and alive counter, the codec's `Recei
 its level. Emergency, whatever the last valid frame said:
 
 - `power_up`: no valid frame yet since the receiver started;
-- `timeout`: the newest valid frame is older than TIMEOUT_PERIODS periods (a monitor that
-  crashed, hangs or went bus-off);
+- `timeout`: the newest valid frame is TIMEOUT_PERIODS periods old (a monitor that crashed,
+  hangs or went bus-off): the supervision's timing contract counts these periods
+  (braking.SUPERVISED_PERIODS = 1 for the last frame's way + TIMEOUT_PERIODS);
 - `second_sender`: BrakeDemand has a second sender (a frame repeating the counter with other
   content: a forger in step with the monitor, or one replaying its old frames; codec.py);
 - `invalid_level`: the newest BrakeDemand with a correct CRC carried a level the DBC does
@@ -29,7 +30,7 @@ from monitor.core.types import EMERGENCY
 
 from .codec import BRAKE_DEMAND_ID, Receiver
 
-TIMEOUT_PERIODS = 3          # the newest valid BrakeDemand may be this many periods old (300 ms at 100 ms)
+TIMEOUT_PERIODS = 3          # the newest valid BrakeDemand counts for less than this many periods (300 ms at 100 ms)
 CAUSES = ("power_up", "timeout", "second_sender", "invalid_level")
 
 
@@ -53,7 +54,7 @@ class BrakeReceiver:
         self.heard = True
         if rx.demand_invalid is not None and rx.demand_invalid >= d["tick"]:
             return "invalid_level"
-        if tick - d["tick"] > TIMEOUT_PERIODS * self.period_ms:
+        if tick - d["tick"] >= TIMEOUT_PERIODS * self.period_ms:
             if self.silent_ms is None:
                 self.silent_ms = tick - d["tick"]
             return "timeout"

@@ -4,8 +4,9 @@ Every period (default 100 ms) the runner hands the core the newest valid report 
 channel with the tick it arrived, the newest TrainState (None once it is older than the
 channel timeout, which the core reads as a train-input error), and the number of
 consecutive deadline overruns; then it sends BrakeDemand, MonitorStatus and MonitorTrack (the
-remembered obstacle). A cycle that ends after its deadline is an overrun; `max_overruns` in a
-row put the core in SAFE_STOP.
+remembered obstacle). A cycle whose frames would leave after its deadline is an overrun; it
+sends no BrakeDemand below emergency (the brakes' receiver times out instead, which the
+supervision's timing contract counts); `max_overruns` in a row put the core in SAFE_STOP.
 
 The receive path and the core step live in `MonitorCore`, which knows no bus and no
 clock: the live runner feeds it frames from the bus, `railguard replay` frames from a log,
@@ -262,6 +263,7 @@ class MonitorRunner:
     frames_received: int = 0
     frames_sent: int = 0
     send_failures: int = 0
+    demands_withheld: int = 0    # late cycles' BrakeDemand below emergency, not sent (cycle())
     max_send_gap_ms: int = 0     # largest gap between two BrakeDemand sends (wall clock; 0 when simulated)
 
     def __post_init__(self) -> None:
@@ -328,9 +330,13 @@ class MonitorRunner:
         """Step the core, send its outputs, keep and return the cycle's record."""
         tick = self.next_tick
         out, rec = self.monitor.decide(tick, self.overruns)
-        self.send(out, rec.foreign_output)
-        finished = self.clock.now_ms()
-        if finished > tick + self.period:
+        # a late cycle (its frames would leave after its period: an overrun) never sends a
+        # BrakeDemand below emergency: a demand that left late and said less would restart the
+        # brakes' receiver timeout on a picture older than a period, and the supervision's
+        # timing contract (braking.SUPERVISED_PERIODS) counts one period for the frame's way
+        late = self.clock.now_ms() > tick + self.period
+        self.send(out, rec.foreign_output, withhold_demand=late and out.demand != EMERGENCY)
+        if late or self.clock.now_ms() > tick + self.period:      # late, or its sending made it late
             self.overruns += 1
             self.deadline_misses += 1
         else:
@@ -341,7 +347,9 @@ class MonitorRunner:
             self.on_cycle(rec)
         return rec
 
-    def send(self, out: Outputs, foreign_output: bool = False) -> None:
+    def send(self, out: Outputs, foreign_output: bool = False, withhold_demand: bool = False) -> None:
+        """The cycle's four frames; `withhold_demand`: all but BrakeDemand (a late cycle's
+        demand below emergency, counted in `demands_withheld`)."""
         flags = (out.module_flags & FLAG_MODULES) | (FLAG_SYSTEM_ERROR if out.system_error else 0)
         flags |= (FLAG_STALE if out.reasons & R_STALE else 0) | (FLAG_PERCEPTOR if out.reasons & R_PERCEPTOR else 0)
         distance = out.distance_dm if out.distance_dm != NO_DISTANCE else NO_DISTANCE_RAW
@@ -360,6 +368,9 @@ class MonitorRunner:
                                "TableRisk": out.table_risk_ppm, "Unsecured": int(self.security is None)}),
         )
         for frame_id, signals in messages:
+            if withhold_demand and frame_id == BRAKE_DEMAND_ID:
+                self.demands_withheld += 1
+                continue
             data = self.sender.frame(frame_id, signals)
             if self._transmit(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False,
                                           is_fd=len(data) > FRAME_LENGTH)):

@@ -170,6 +170,7 @@ def summarise(runner: MonitorRunner, player: Optional[Player], log: Optional[Pat
         "deadline_misses": runner.deadline_misses,
         "max_send_gap_ms": None if runner.clock.simulated else runner.max_send_gap_ms,   # wall time only
         "send_failures": runner.send_failures,
+        "demands_withheld": runner.demands_withheld,   # late cycles' BrakeDemand below emergency
         "bus_security": describe_security(runner.security),
         "attack": attack_note(runner, player),
         "table": runner.setup.model,

@@ -202,13 +202,18 @@ def monitor_params(values: dict) -> dict:
     return fields(values)
 
 
-def run_cases(loop, params: dict, todo) -> tuple[list[Outcome], float]:
+def run_cases(loop, params: dict, todo, stalled: bool = False) -> tuple[list[Outcome], float]:
     """(outcomes, wall seconds) of `todo` through `loop` (a fmu.cosim.Loop) with monitor
-    parameters `params`; each run ends when the train stands (or hits)."""
+    parameters `params`; each run ends when the train stands (or hits). `stalled`: the
+    monitor stops at the first reading (no longer stepped: a hang, a crash), so that its
+    last cycle is the one that found the obstacle beyond EBI and the train's brake receiver
+    brakes at its timeout, the supervision's timing contract at its worst (4 periods)."""
     out = []
     t0 = time.perf_counter()
+    stop = APPROACH_S if stalled else math.inf
     for case in todo:
-        res = loop.run(case.train_params(), params, MAX_RUN_S, record=False, until_standstill=True)
+        res = loop.run(case.train_params(), params, MAX_RUN_S, record=False, until_standstill=True,
+                       monitor_stop_s=stop)
         out.append(Outcome(case, res.outcome, res.stop_margin_m, res.impact_speed, res.first_brake_s,
                            res.demand_changes))
     return out, time.perf_counter() - t0

@@ -224,8 +224,8 @@ def _train() -> list[Var]:
         Var("fault.start", "Real", P, "fixed", 0.0, "s", "fault begins"),
         Var("fault.end", "Real", P, "fixed", 1e9, "s", "fault ends"),
         Var("brake_timeout", "Real", P, "fixed", 0.3, "s",
-            "the brake receiver's alive timeout: emergency, held to standstill, when monitor_cycle has not changed "
-            "for longer than this (3 monitor periods); 0: no alive check", 0.0, 10.0),
+            "the brake receiver's alive timeout: emergency, held to standstill, once monitor_cycle has not changed "
+            "for this long (3 monitor periods, the supervision's timing contract); 0: no alive check", 0.0, 10.0),
     ]
     for i in range(1, CHANNELS + 1):
         p = f"ch{i}."

@@ -206,7 +206,7 @@ def test_the_c_step_runs_symbolically_on_finitely_many_paths_with_a_sighting(pro
     # the summary is given rg_curves' arguments in C's order: cfg, speed, track, brake, closing, age, ...
     cfg_view, speed, track, brake, closing, age, service, periods, out = calls[0]
     assert isinstance(cfg_view, c_symbolic.ConfigView) and isinstance(out, c_symbolic.Ref), note
-    assert speed.term.eq(v) and closing.term.eq(c) and (track, brake, service, periods) == (0, 0, 0, 2), note
+    assert speed.term.eq(v) and closing.term.eq(c) and (track, brake, service, periods) == (0, 0, 0, 4), note
     assert age == 0, note
     print(note)
 
@@ -219,7 +219,7 @@ def test_the_c_step_runs_symbolically_on_finitely_many_paths_every_channel_blind
     for state, out in runs:        # blind: a system error with a stale channel, the safe reaction (emergency)
         assert (out.distance_dm, out.demand, state.mode) == (NO_DISTANCE, EMERGENCY, DEGRADED_MODE), note
         assert out.reasons & R_STALE, note
-    assert calls and all(call[7] == 2 for call in calls), note       # only the remembered track's curves
+    assert calls and all(call[7] == 4 for call in calls), note       # only the remembered track's curves (RG_SUPERVISED_PERIODS)
     print(note)
 
 

@@ -505,7 +505,7 @@ def test_deadline_overruns_lead_to_safe_stop():
     max_overruns = setup.config.max_overruns
     mon_bus, listener = virtual_pair()
     try:
-        runner = MonitorRunner(mon_bus, setup, JumpingClock())
+        runner = MonitorRunner(mon_bus, setup, JumpingClock(steady=3))
         runner.run(cycles=22)
         frames = received(listener)
     finally:
@@ -524,9 +524,12 @@ def test_deadline_overruns_lead_to_safe_stop():
         else:
             assert not rec.reasons & R_DEADLINE, k
             assert rec.mode != SAFE_STOP, k
-    # what went on the bus: four valid E2E frames per cycle, in order
+    # what went on the bus: four valid E2E frames per cycle, in order, but a late cycle's
+    # BrakeDemand below emergency, which is withheld (the brakes' receiver times out instead)
+    late_low = [k for k, rec in enumerate(recs) if k > 0 and rec.demand != EMERGENCY]
+    assert runner.demands_withheld == len(late_low)
     rx = Receiver()
-    assert len(frames) == 4 * len(recs)
+    assert len(frames) == 4 * len(recs) - len(late_low)
     demands, statuses = [], []
     for msg in frames:
         assert not msg.is_extended_id and len(msg.data) == 8
@@ -536,14 +539,48 @@ def test_deadline_overruns_lead_to_safe_stop():
             (demands if name == "BrakeDemand" else statuses).append(dict(rx.demand if name == "BrakeDemand" else rx.status))
     assert [f.arbitration_id for f in frames[:4]] == [BRAKE_DEMAND_ID, MONITOR_STATUS_ID, MONITOR_TRACK_ID,
                                                       MONITOR_RISK_ID]
-    assert len(demands) == len(statuses) == len(recs)
-    for k, (dem, st, rec) in enumerate(zip(demands, statuses, recs)):
-        assert dem["Level"] == rec.demand and dem["Reason"] == rec.reasons and st["Mode"] == rec.mode, k
+    sent = [k for k in range(len(recs)) if k not in late_low]
+    assert len(demands) == len(sent) and len(statuses) == len(recs)
+    assert all(d["Level"] == EMERGENCY for d in demands[1:])        # late: emergency or nothing
+    for k, dem in zip(sent, demands):
+        assert dem["Level"] == recs[k].demand and dem["Reason"] == recs[k].reasons, k
+    for k, (st, rec) in enumerate(zip(statuses, recs)):
+        assert st["Mode"] == rec.mode, k
         # DeadlineMisses counts the misses so far (this cycle's own overrun is known only after it)
         assert st["DeadlineMisses"] == min(15, max(0, k - 1)), k
         if k - 1 >= max_overruns:
-            assert st["Mode"] == SAFE_STOP and dem["Reason"] & R_DEADLINE and dem["Level"] == EMERGENCY, k
+            assert st["Mode"] == SAFE_STOP and k in sent, k
     assert statuses[-1]["DeadlineMisses"] == 15                      # saturates
+
+
+def test_a_late_cycle_sends_no_brake_demand_below_emergency():
+    """The timing contract's frame rule: a cycle whose frames would leave after its period
+    sends BrakeDemand only at emergency (the core's decision is forced to "none" here, a unit
+    test of the runner's send rule): on time, "none" is sent; late, it is withheld, and the
+    brakes' receiver, hearing nothing fresh, times out."""
+    setup = setup_for("m2")
+    mon_bus, listener = virtual_pair()
+    try:
+        runner = MonitorRunner(mon_bus, setup, JumpingClock(steady=3))
+        decide = runner.monitor.decide
+
+        def none_demanded(tick, overruns=0):
+            out, rec = decide(tick, overruns)
+            return out._replace(demand=0), rec
+
+        runner.monitor.decide = none_demanded
+        runner.run(cycles=4)
+        frames = received(listener)
+    finally:
+        mon_bus.shutdown()
+        listener.shutdown()
+    ids = [f.arbitration_id for f in frames]
+    on_time = 4 - runner.deadline_misses
+    assert 1 <= on_time < 4 and runner.demands_withheld == runner.deadline_misses
+    assert ids.count(BRAKE_DEMAND_ID) == on_time and ids.count(MONITOR_STATUS_ID) == 4
+    rx = Receiver()
+    levels = [rx.demand["Level"] for f in frames if rx.accept(f.arbitration_id, f.data, 0) == "BrakeDemand"]
+    assert levels == [0] * on_time
 
 
 def test_no_overrun_on_time():

@@ -744,7 +744,7 @@ def exact_ebi_m(cfg: Config, v_cms: int, track: int, brake: int, closing_cms: in
     if cfg.emergency_band2_cms:
         bands.append((Fraction(cfg.emergency_band2_cms, 100), Fraction(cfg.emergency_band2_mms2, 1000)))
     vmax, vmin = v * (1 + e), v * (1 - e)
-    t1 = Fraction(age_ms + 2 * cfg.period_ms + cfg.traction_cutoff_ms, 1000)
+    t1 = Fraction(age_ms + 4 * cfg.period_ms + cfg.traction_cutoff_ms, 1000)   # the timing contract's 4 periods
     a1 = Fraction(cfg.max_accel_mms2, 1000) + g
     v1 = vmax + a1 * t1
     t2 = max(Fraction(cfg.emergency_buildup_ms - cfg.traction_cutoff_ms, 1000), Fraction(0))
@@ -777,11 +777,11 @@ def test_ebi_is_never_shorter_than_the_exact_curve_and_hardly_longer(cfg, track,
 
 def test_curve_reference_values():
     """The shipped train at 40 m/s on a level-looking but declared 20 per mille downhill: EBI
-    about 481 m (the old nominal envelope said 287 m; 476 m before the sampling period was
-    counted: 40.8 m/s for 0.1 s more, accelerating)."""
+    about 493 m (the old nominal envelope said 287 m; 476 m before the sampling period was
+    counted, 481.5 m before the stalled monitor was: 4 periods of reaction, not 2)."""
     c = curves(Config(), 4000, 0, 0, 4000, 0)
-    assert c == (3990, 4815, 5647, 6479)
-    assert curves(Config(), 0, 0, 0, 0, 0).ebi_dm == 58
+    assert c == (3990, 4929, 5761, 6593)
+    assert curves(Config(), 0, 0, 0, 0, 0).ebi_dm == 60
 
 
 def test_curves_are_ordered_and_grow_with_speed_and_adverse_conditions():

@@ -612,7 +612,7 @@ def test_obstacle_run_and_scaled_decelerations_are_rounded_to_the_safe_side():
 
 
 def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: int, age: int, service: bool = False,
-                     periods: int = 2):
+                     periods: int = 4):
     """EBD, EBI, SBI and warning (dm) written out again from docs/supervision.md in exact
     fractions of SI units, every term rounded to the safe side on its own as the document
     says (distances and speeds up, decelerations down), without monitor.core.braking."""

@@ -670,6 +670,10 @@ def _check(fmu, table: bytes, params: dict, steps: list, seen: Counter | None = 
 # the edges every run of SEQUENCES_PER_TABLE sequences must reach this often (and the kinds
 # of configuration it must draw), so that a generator that stops reaching them fails
 MIN_HITS = 200
+# edges a run reaches more rarely, and their share of MIN_HITS: since the curves count four
+# periods (issue 40 item 3) the supervision brakes first more often, and m1's table holds a
+# demand above its own action in about 90 cycles of a run
+RARE_EDGES = {"table demand held": 4}
 EDGES = ("distance == EBI", "distance == EBI + 1", "distance == SBI", "distance == SBI + 1", "distance == warning",
          "distance == warning + 1", "speed 0", "speed 1 cm/s", "speed at a band edge", "speed 1 cm/s below a band edge",
          "report age 0", "report age == timeout", "dispute", "release after exactly release_confirm_cycles",
@@ -718,7 +722,7 @@ def test_c_core_in_the_fmu_equals_the_python_core(model, monitor_drivers):
 
     check_one()
     assert count[0] >= SEQUENCES_PER_TABLE
-    missed = {e: seen[e] for e in EDGES if seen[e] < MIN_HITS}
+    missed = {e: seen[e] for e in EDGES if seen[e] < MIN_HITS // RARE_EDGES.get(e, 1)}
     assert not missed, f"edges reached too rarely: {missed}; all: {dict(seen)}"
     rare = {k: kinds[k] for k in KINDS if kinds[k] < MIN_HITS}
     assert not rare, f"configurations drawn too rarely: {rare}; all: {dict(kinds)}"

@@ -76,13 +76,21 @@ def test_the_obstacle_is_first_read_one_cycle_inside_ebi_at_the_grid_speed(speed
 
 def test_no_collision_in_the_grid(curves_loop):
     """2592 runs: every train within the declaration stops `standstill_margin` (5 m) before
-    every obstacle, as the physics proof says; at the pulling corner it comes within a metre."""
+    every obstacle, as the physics proof says, with the monitor running (measured: 9.66 m at
+    least) and with it stalled at the first reading, the brakes' receiver braking at its
+    timeout (issue 40 item 3; measured 8.23 m at least; the curves of before, which counted
+    two periods, not four, stopped 31 of these runs inside the margin, 2.69 m at worst)."""
     outcomes, _ = acc.run_cases(curves_loop, PARAMS, acc.grid_cases(VALUES))
     s = acc.summary(outcomes)
     bad = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.outcome, o.impact_speed)
            for o in outcomes if o.outcome != "stopped"]
     assert s["collisions"] == 0 and not bad, bad[:5]
-    assert VALUES["standstill_margin_m"] <= s["min_margin_m"] < VALUES["standstill_margin_m"] + 1.0
+    assert VALUES["standstill_margin_m"] <= s["min_margin_m"] < VALUES["standstill_margin_m"] + 6.0
+    stalled, _ = acc.run_cases(curves_loop, PARAMS, acc.grid_cases(VALUES), stalled=True)
+    t = acc.summary(stalled)
+    assert t["collisions"] == 0 and all(o.outcome == "stopped" for o in stalled)
+    assert VALUES["standstill_margin_m"] <= t["min_margin_m"] < s["min_margin_m"]      # the stall costs margin
+    assert all(o.first_brake_s is None for o in stalled)            # no monitor demand: the receiver braked
     assert all(o.first_brake_s is not None and o.first_brake_s >= acc.APPROACH_S - 0.11 for o in outcomes)
     chatter = [(o.case.world.label(), o.case.speed, o.case.obstacle_speed, o.demand_changes)
                for o in outcomes if o.demand_changes > 2]
@@ -164,15 +172,16 @@ def test_the_grid_collides_when_the_declaration_promises_more_than_the_train_bra
 
 @pytest.mark.parametrize("worse", [{"factor": 0.9}, {"dead_s": 1.75}])
 def test_a_train_a_little_worse_than_declared_collides(curves_loop, worse):
-    """10 % less deceleration, or 0.75 s more dead time, than declared: collisions in at least
-    9 of the 12 hardest cases (the sampling period the curves count saves one of them)."""
+    """10 % less deceleration, or 0.75 s more dead time, than declared, at the timing
+    contract's worst (the monitor stalled at the first reading, the receiver's timeout):
+    collisions in at least 9 of the 12 hardest cases."""
     hard = acc.hardest_world(VALUES)
     if "factor" in worse:
         world = replace(hard, bands=tuple((s, a * worse["factor"]) for s, a in hard.bands))
     else:
         world = replace(hard, dead_s=worse["dead_s"])
-    outcomes, _ = acc.run_cases(curves_loop, PARAMS, hardest_cases(world))
-    assert sum(o.collision for o in outcomes) >= 9          # of 12 (10 before the sampling period was counted)
+    outcomes, _ = acc.run_cases(curves_loop, PARAMS, hardest_cases(world), stalled=True)
+    assert sum(o.collision for o in outcomes) >= 9          # of 12
 
 
 def test_the_grid_and_the_proof_agree_on_which_trains_are_inside_the_declaration():

@@ -131,10 +131,10 @@ def test_train_seconds_are_counted():
 def test_zones_and_obstacle_window():
     a1, a2 = SHIPPED.alphas_at_line_speed_m()
     # the core's zones under normal conditions at 40 m/s, a static obstacle: alpha2 = EBI, alpha1 = the service
-    # EBI, as zone limits (without the supervision's sampling period: its EBI is 481.5 m)
+    # EBI, as zone limits (one period, not the supervision's four: its EBI is 492.9 m)
     assert (a1, a2) == (ebi_dm(Config(), 4000, 0, 0, 4000, 0, service=True) / 10,
                         ebi_dm(Config(), 4000, 0, 0, 4000, 0) / 10) == (1588.8, 475.8)
-    assert curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm == 4815
+    assert curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm == 4929     # 4 periods (481.5 m counting 2)
     lo, hi = SHIPPED.appear_window_m()
     assert math.isclose(lo, 1032.3) and math.isclose(hi, 1082.3)
     assert PAPER.alphas_at_line_speed_m() == (300.0, 100.0)   # one cycle (4 m) + v^2/2a with 8.334 / 2.703 m/s^2

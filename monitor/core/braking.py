@@ -24,12 +24,16 @@ from typing import NamedTuple
 from .config import Config, emergency_bands, gradient_accel_mms2
 
 CURVE_CAP_DM = 1_000_000        # 100 km: saturate here (every obstacle in range is inside)
-# Periods in EBI's reaction phase. The supervision samples once a period, so the first cycle
-# inside EBI may come one period after the last one outside it: its curves count that period
-# and the demand's way to the brakes. The table's zone limits count the demand's period only:
-# they are where an emergency must be commanded, and the POMDP the table was solved for steps
-# at the period itself (its own step is the sampling), so they stay the models' zones.
-SUPERVISED_PERIODS = 2
+# Periods in EBI's reaction phase, after the last cycle that found the train outside EBI. A
+# running monitor samples once a period, so the first cycle inside may come a period later,
+# and its demand takes a period to the brakes: 2. A monitor that stalls (hangs, crashes,
+# overruns) after that cycle sends nothing newer; its last BrakeDemand takes a period and the
+# brakes' receiver brakes once it is 3 periods old (can_bus/brake_receiver.py; a late cycle
+# sends none below emergency, can_bus/runner.py): 4, the worse, whatever max_overruns lets
+# pass. The table's zone limits count the demand's period only: they are where an emergency
+# must be commanded, and the POMDP the table was solved for steps at the period itself (its
+# own step is the sampling), so they stay the models' zones.
+SUPERVISED_PERIODS = 4
 ZONE_PERIODS = 1
 
 

@@ -118,8 +118,15 @@ def weakening_run(job: tuple) -> dict:
         for oncoming, point, pulling in tries:
             kind = ("oncoming" if oncoming else "static") + ("" if pulling else ", cruising")
             name = f"{w.name}-{kind.replace(', ', '-')}"
-            path, figures = replay.write_scenario(played, point, module, f"{w.name} ({w.what}): {target.name}, "
-                                                  f"{kind} obstacle", folder / f"{name}.toml", pulling)
+            title = f"{w.name} ({w.what}): {target.name}, {kind} obstacle"
+            path, figures = replay.write_scenario(played, point, module, title, folder / f"{name}.toml", pulling)
+            # the timing contract's worst for the weakened monitor: it stalls at the cycle where,
+            # running, it first demands an emergency (its last cycle was its last one outside its
+            # own EBI) and the brakes' receiver brakes at its timeout
+            stall = replay.play(path, fmu, train)["first_emergency_s"]
+            if stall is not None:
+                path, figures = replay.write_scenario(played, point, module, title, folder / f"{name}.toml", pulling,
+                                                      stall_s=stall)
             weak, sound = replay.play(path, fmu, train), replay.play(path, shipped, train)
             entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
                      "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}

@@ -45,13 +45,21 @@ MAX_TRACK_CLOSING_CMS = 2 * MAX_CLOSING_CMS + MAX_SPEED_CMS   # a remembered obs
 
 # The monitor's timing contract, stated here and never read from the code it judges (issue 40
 # item 1: a reference that imported braking.SUPERVISED_PERIODS shrank with it, and a curve that
-# forgot the sampling period proved): between the last cycle that found the train outside a
-# supervised curve and the brakes, the world may let pass the sampling period (the first cycle
-# inside may come one period later) and the demand's period on its way to the brakes; a zone
-# limit is demanded at the limit itself, so only the demand's period. The code's own constants
-# (braking.SUPERVISED_PERIODS, ZONE_PERIODS; RG_SUPERVISED_PERIODS, RG_ZONE_PERIODS) stay on
-# the code's side of every obligation.
-CONTRACT_PERIODS = 2          # sampling + the demand's way to the brakes
+# forgot the sampling period proved). Between the last cycle that found the train outside a
+# supervised curve and the brakes, the world may let pass, at worst:
+# - running: the sampling period (the first cycle inside may come one period later) and the
+#   demand's way to the brakes (one period): 2 periods;
+# - stalled (item 3: a monitor that hangs, crashes or overruns after that cycle): that cycle's
+#   BrakeDemand on its way (one period: a late cycle sends none below emergency,
+#   can_bus/runner.py) and the brakes' receiver timeout, which brakes once the newest frame is
+#   RECEIVER_TIMEOUT_PERIODS old (can_bus/brake_receiver.py, the train FMU's brake_timeout):
+#   1 + 3 = 4 periods, the worse of the two, whatever `max_overruns` lets pass.
+# A zone limit is demanded at the limit itself, so only the demand's period; the supervised
+# curves are the floor that carries the stall. The code's own constants (braking.SUPERVISED_
+# PERIODS, ZONE_PERIODS; RG_SUPERVISED_PERIODS, RG_ZONE_PERIODS) stay on the code's side of
+# every obligation.
+RECEIVER_TIMEOUT_PERIODS = 3  # the brakes' receiver: the newest BrakeDemand counts for less than this
+CONTRACT_PERIODS = max(2, 1 + RECEIVER_TIMEOUT_PERIODS)    # running: sampling + way; stalled: way + timeout
 CONTRACT_ZONE_PERIODS = 1     # the demand's way to the brakes
 
 ASSUMPTIONS = (
@@ -62,8 +70,10 @@ ASSUMPTIONS = (
     "during a report's age the train ran no faster than the speed error allows around the speed the cycle "
     "measures, accelerating at most at traction plus the steepest downhill (the age is at most "
     "`timeout_cycles x period`)",
-    "the monitor runs every period: the first cycle inside EBI is at most one period after the last one "
-    "outside it, and a remembered obstacle is moved once per period, at the speed that cycle measured",
+    "the brakes apply emergency at most `RECEIVER_TIMEOUT_PERIODS` (3) periods after the newest valid BrakeDemand, "
+    "and a cycle whose frames would leave late sends none below emergency: a monitor that stalls, crashes or "
+    "overruns brakes the train at most 4 periods after its last cycle outside EBI (`CONTRACT_PERIODS`)",
+    "while the monitor runs, a remembered obstacle is moved once per period, at the speed that cycle measured",
     "the train's equivalent build-up (dead time + half a linear ramp) is at most the declared one",
     "in each speed band the brake decelerates at least as declared, times the adhesion factors the train reports",
     "the gradient is at most `max_downhill_gradient` downhill, and traction at most `max_accel`",

@@ -118,13 +118,18 @@ SIGHTING_INSIDE_M = 0.1    # the first reading this far inside the shipped EBI: 
 
 
 def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table: Path,
-                  pulling: bool = True) -> tuple[str, dict]:
+                  pulling: bool = True, stall_s: Optional[float] = None) -> tuple[str, dict]:
     """The cosim scenario of a counterexample point (monitor/scenario.py's language) and its
     figures. The obstacle comes into range one cycle's travel inside the shipped code's
     emergency curve, so that the shipped monitor brakes at once there and the weakened one at
     least a cycle later. `pulling`: the train pulls at full traction until the demand (the
     declaration's worst train), else it cruises; both are inside the declaration, and which
-    one makes the weakened monitor later depends on where its curve lies (PULLING)."""
+    one makes the weakened monitor later depends on where its curve lies (PULLING).
+    `stall_s`: the monitor stalls from then on (a hang, a crash: the master no longer steps
+    it); the caller gives the cycle at which the weakened monitor first demands when it runs,
+    so that the brakes' receiver brakes at its timeout, the timing contract's worst (4
+    periods after the weakened monitor's last cycle outside its own EBI), while the shipped
+    monitor braked at the first reading."""
     import json
 
     from fmu.acceptance import approach, approach_accel, cruise_speed
@@ -157,6 +162,9 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
              f"the weakened EBI ({ebi_weak:.1f} m)",
              f"range_m = {seen_at + 0.05:.2f}", "noise_sigma_m = 0.0", "", "[braking]"]
     lines += [f"{k} = {json.dumps(v)}" for k, v in declaration_si(cfg).items()]
+    if stall_s is not None:
+        lines += ["", "[[faults]]  # the monitor stalls where the weakened one first demands", 'kind = "monitor_stop"',
+                  f"start_s = {stall_s:.1f}"]
     return "\n".join(lines) + "\n", {"true_speed_mps": true_speed, "obstacle_speed_mps": obstacle,
                                       "ebi_shipped_m": ebi_shipped, "ebi_weakened_m": ebi_weak}
 
@@ -214,7 +222,7 @@ def memory_scenario_text(cfg: Config, title: str, table: Path) -> tuple[str, dic
 
 
 def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path: Path,
-                   pulling: bool = True) -> tuple[Path, dict]:
+                   pulling: bool = True, stall_s: Optional[float] = None) -> tuple[Path, dict]:
     """The scenario file and, beside it, the curves-only table it names."""
     from fmu.acceptance import curves_only_table
     from monitor.tables import read
@@ -222,7 +230,7 @@ def write_scenario(cfg: Config, point: dict, weak: ModuleType, title: str, path:
     path.parent.mkdir(parents=True, exist_ok=True)
     table = path.parent / "curves-only.rgt"
     table.write_bytes(curves_only_table(read("m1")))
-    text, figures = scenario_text(cfg, point, weak, title, table.resolve(), pulling)
+    text, figures = scenario_text(cfg, point, weak, title, table.resolve(), pulling, stall_s)
     path.write_text(text)
     return path, figures
 
@@ -231,6 +239,9 @@ def play(path: Path, monitor_fmu: Path, train_fmu: Path) -> dict:
     """Play the scenario in co-simulation with the real FMUs given."""
     from fmu import cosim, scenario
 
-    res = cosim.run_scenario(scenario.load(str(path)), monitor_fmu, train_fmu, record=False)
+    res = cosim.run_scenario(scenario.load(str(path)), monitor_fmu, train_fmu)
+    t, demand = res.columns.index("time_s"), res.columns.index("brake_demand")
+    # the monitor's first emergency demand (a row is stamped at the end of its 10 ms step)
+    emergency = next((round(r[t] - 0.01, 2) for r in res.rows if r[demand] == 2), None)
     return {"outcome": res.outcome, "margin_m": res.margin_m, "impact_speed": res.impact_speed,
-            "first_brake_s": res.first_brake_s, "max_demand": res.max_demand}
+            "first_brake_s": res.first_brake_s, "first_emergency_s": emergency, "max_demand": res.max_demand}

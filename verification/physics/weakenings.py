@@ -55,9 +55,11 @@ WEAKENINGS = (
                 "(cfg.service_buildup_ms if service else cfg.emergency_buildup_ms) // 2, g"),),
               (("    const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;",
                 "    const int64_t buildup = (service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms) / 2;"),)),
-    Weakening("sampling-ignored", "the sampling period left out of the supervision's reaction (one period, not two)",
-              (("SUPERVISED_PERIODS = 2\n", "SUPERVISED_PERIODS = 1\n"),),
-              (("#define RG_SUPERVISED_PERIODS 2", "#define RG_SUPERVISED_PERIODS 1"),)),
+    # issue 40 item 3: the periods a stalled monitor lets pass before the brakes' receiver times
+    # out, left out (the curves of before: sampling + the demand's way, 2 periods, not 4)
+    Weakening("stall-ignored", "a stalled monitor's periods left out of the supervision's reaction (two periods, not four)",
+              (("SUPERVISED_PERIODS = 4\n", "SUPERVISED_PERIODS = 2\n"),),
+              (("#define RG_SUPERVISED_PERIODS 4", "#define RG_SUPERVISED_PERIODS 2"),)),
     Weakening("oncoming-ignored", "the oncoming obstacle's travel left out of EBI",
               (("    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, t1 + t2 + t3)\n",
                 "    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm\n"),),

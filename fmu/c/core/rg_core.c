@@ -618,8 +618,8 @@ void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t b
     const int32_t n = conditioned_bands(cfg, track, brake, service, g, bands);
     const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;
     int64_t t1, a1, s1, v1, t2, s2, v2, s3, t3, ebi, ebd_dist, ebd_time, ebd, lead, sbi;
-    /* phase 1: report age + `periods` monitor periods (RG_SUPERVISED_PERIODS: the sampling
-       period and the demand's; RG_ZONE_PERIODS for the table's zone limits: the demand's) +
+    /* phase 1: report age + `periods` monitor periods (RG_SUPERVISED_PERIODS: a stalled
+       monitor's; RG_ZONE_PERIODS for the table's zone limits: the demand's) +
        traction cut-off, under full traction and downhill */
     t1 = (int64_t)age_ms + (int64_t)periods * cfg->period_ms + cfg->traction_cutoff_ms;
     a1 = (int64_t)cfg->max_accel_mms2 + g;

@@ -321,8 +321,10 @@ void rg_stop_dm_ms(int64_t speed_cms, const rg_band *bands, int32_t count, int64
 int64_t rg_obstacle_run_dm(int64_t obstacle_cms, int64_t time_ms);
 int32_t rg_cap_dm(int64_t x);
 /* Periods in EBI's reaction phase (braking.SUPERVISED_PERIODS, ZONE_PERIODS): the supervision
- * counts the sampling period and the demand's; the table's zone limits the demand's only. */
-#define RG_SUPERVISED_PERIODS 2
+ * counts the worse of a running monitor (the sampling period and the demand's) and a stalled
+ * one (its last frame's period and the brakes' receiver timeout, 3 periods); the table's zone
+ * limits the demand's only. */
+#define RG_SUPERVISED_PERIODS 4
 #define RG_ZONE_PERIODS 1
 void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
                int32_t age_ms, int32_t service, int32_t periods, rg_curve_set *out);

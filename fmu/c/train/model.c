@@ -298,7 +298,7 @@ static double traction_acc(const ModelData *m, int demand, int level, double t, 
 }
 
 /* The brake receiver (issue 39 item 3): the monitor's cycle counter comes with its demand;
- * once it has not changed for longer than brake_timeout after the hand-over (a monitor FMU
+ * once it has not changed for brake_timeout after the hand-over (a monitor FMU
  * that froze, crashed or is no longer stepped; off with brake_timeout = 0), or the demand is
  * a level no monitor sends (not 0..2), the receiver demands emergency and holds it until the
  * train stands (and the counter moves again). */
@@ -310,7 +310,7 @@ static int alive_lost(ModelData *m, double t, double v)
         m->alive_since = t;
     }
     if ((m->brake_timeout > 0.0 && t >= HANDOVER_TIME - SAMPLE_EPS &&
-         t - m->alive_since > m->brake_timeout + SAMPLE_EPS) || (unknown && t >= HANDOVER_TIME - SAMPLE_EPS))
+         t - m->alive_since >= m->brake_timeout - SAMPLE_EPS) || (unknown && t >= HANDOVER_TIME - SAMPLE_EPS))
         m->receiver_brake = 1;
     else if (m->receiver_brake && v <= 0.0)
         m->receiver_brake = 0; /* held to standstill, and the counter moves again */
