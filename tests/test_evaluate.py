@@ -329,6 +329,25 @@ def evaluated(tmp_path_factory) -> dict:
     return {"m1": {**m1, "stdout": proc.stdout, "out": out}, "m2": json.loads(proc2.stdout)}
 
 
+def test_the_report_part_judges_the_runs_users_make(evaluated, tmp_path, monkeypatch):
+    """`verification.evaluate.section` (the report's part: `verify --quick` leaves it to this
+    test, which has the same quick runs at hand) on the very results of `railguard evaluate
+    m1|m2 --quick` above: every ACAS X check passes and both tables are reported."""
+    results = {n: {k: v for k, v in evaluated[n].items() if k not in ("stdout", "out")} for n in ("m1", "m2")}
+    asked = []
+
+    def evaluate(name, quick=False, progress=None, **kw):
+        asked.append((name, quick, kw))
+        return results[name]
+
+    monkeypatch.setattr(ev, "evaluate", evaluate)
+    sec = ev.section(tmp_path, True, lambda _: None)
+    assert asked == [("m1", True, {}), ("m2", True, {})]          # the CLI's --quick runs, default seed
+    failed = [(c.name, c.figure) for c in sec.checks if not c.passed]
+    assert len(sec.checks) >= 4 and not failed, failed
+    assert "### m1 (" in sec.markdown and "### m2 (" in sec.markdown
+
+
 @pytest.mark.parametrize("name", ["m1", "m2"])
 def test_evaluate_json_has_every_figure_for_the_table_and_every_baseline(evaluated, name):
     r = evaluated[name]

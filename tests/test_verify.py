@@ -102,7 +102,9 @@ def test_a_part_that_crashes_is_a_failed_check(tmp_path, monkeypatch):
 # phase; tests/test_physics.py: the full physics part through the same command, 35 s;
 # tests/test_campaign.py: the quick campaign's every check, and its vcan0 sample, 19 s;
 # tests/test_fuzz.py: the quick fuzz section): run once, not twice
-OWN_TESTS = ("seed000", "seed001", "physics", "campaign", "fuzz")
+# parts whose own tests run them (the evaluate part: tests/test_evaluate.py, on the same quick runs
+# its fixture makes as users run them)
+OWN_TESTS = ("seed000", "seed001", "physics", "campaign", "fuzz", "evaluate")
 
 
 def test_verify_quick_passes_with_report_and_json(tmp_path):
