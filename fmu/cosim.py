@@ -23,6 +23,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from monitor.core.types import EMERGENCY
 from monitor.risk_summary import RiskTally, risk_columns
 
 from .driver import FmuCallError, Port, close_slave, do_step_function, initialize, open_slave, vr_of
@@ -57,6 +58,7 @@ class CosimResult:
     demand_delay_cycles: int = DEMAND_DELAY_CYCLES
     demand_changes: int = 0               # changes of the monitor's demand from its first brake demand on
     receiver_brake: bool = False          # the train's brake receiver braked on the monitor's stopped alive counter
+    first_emergency_s: float | None = None   # the monitor's first emergency demand (its cycle's time)
 
     @property
     def realtime_factor(self) -> float:
@@ -270,7 +272,7 @@ class Loop:
         n_steps = int(round(duration_s / step_s))
         pending: deque = deque()      # demands computed but not yet delivered to the train
         train_rows, monitor_rows, delivered = [], [], []
-        first_brake = stop_margin = None
+        first_brake = first_emergency = stop_margin = None
         max_demand = changes = last = 0
         real_values, int_values = self.t_real.values, self.t_int.values
         get_real, get_int = self.t_real.call, self.t_int.call
@@ -299,6 +301,8 @@ class Loop:
                     max_demand = demand
                 if demand and first_brake is None:
                     first_brake = round(t, 6)
+                if demand == EMERGENCY and first_emergency is None:
+                    first_emergency = round(t, 6)
                 if demand != last and first_brake is not None:
                     changes += 1
                 last = demand
@@ -340,7 +344,8 @@ class Loop:
                 for i in range(len(train_rows))]
         return CosimResult(outcome, margin, steps, len(monitor_rows), steps * step_s, wall, rows, columns,
                            first_brake, max_demand, stop_margin, impact, demand_changes=changes,
-                           receiver_brake=receiver_brake or bool(self.t_collided.values[1]))
+                           receiver_brake=receiver_brake or bool(self.t_collided.values[1]),
+                           first_emergency_s=first_emergency)
 
 
 def write_csv(result: CosimResult, path: Path) -> Path:

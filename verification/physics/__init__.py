@@ -123,11 +123,12 @@ def weakening_run(job: tuple) -> dict:
             # the timing contract's worst for the weakened monitor: it stalls at the cycle where,
             # running, it first demands an emergency (its last cycle was its last one outside its
             # own EBI) and the brakes' receiver brakes at its timeout
-            stall = replay.play(path, fmu, train)["first_emergency_s"]
-            if stall is not None:
+            weak = replay.play(path, fmu, train)
+            if weak["first_emergency_s"] is not None:
                 path, figures = replay.write_scenario(played, point, module, title, folder / f"{name}.toml", pulling,
-                                                      stall_s=stall)
-            weak, sound = replay.play(path, fmu, train), replay.play(path, shipped, train)
+                                                      stall_s=weak["first_emergency_s"])
+                weak = replay.play(path, fmu, train)
+            sound = replay.play(path, shipped, train)
             entry = {"scenario": str(path), "kind": kind, "point": point, **figures, "weakened": weak,
                      "shipped": sound, "command": f"railguard cosim {path} --monitor-fmu {fmu}"}
             # kept: the first collision, else the replay where the weakened monitor stops nearest
