@@ -139,9 +139,9 @@ class Player:
         d, spec = near
         sigma = s.noise_sigma_m * (50.0 if self.active("noise_burst", ch) else 1.0)
         rng = self.rngs[ch]
-        noisy = max(0.0, d + rng.gauss(0.0, sigma)) if sigma > 0 else d
+        noisy = max(0.0, d + s.distance_bias_m + (rng.gauss(0.0, sigma) if sigma > 0 else 0.0))
         missed = rng.random() < s.miss_probability or self.active("missed_detection", ch) or self.active("blind", ch)
-        closing = (self.speed if self.started else 0.0) - spec.speed_mps
+        closing = (self.speed if self.started else 0.0) - spec.speed_mps + s.closing_bias_mps
         rep = Report(PRESENT, min(60000, round(noisy * 10)), max(-15000, min(15000, round(closing * 100))),
                      OBSTACLE_TYPES.index(spec.type), tick)
         return rep._replace(status=ABSENT, distance_dm=0) if missed else rep

@@ -1,6 +1,7 @@
 """Closed-loop acceptance of the braking curves (issue 11, Deliver 6): the train FMU is the
 world and brakes as badly as the braking declaration allows, corners included (a train
-pulling at full traction until the brake demand among them); the monitor supervises it with
+pulling at full traction until the brake demand among them), its sensors erring at the
+declared accuracy's worst (the obstacle reported farther and closing slower than it is); the monitor supervises it with
 the curves of that declaration; the demand reaches the train one monitor cycle late; the
 obstacle is first read one cycle's travel inside EBI, at the speed the train has then (the
 sampling period's worst case, which the supervised EBI counts: the cycle before, it was out
@@ -73,6 +74,8 @@ class World:
     slippery_factor: float = 1.0
     degraded_factor: float = 1.0
     pulling: bool = False       # full traction until the demand (the train FMU's cruise_speed above its speed)
+    distance_bias: float = 0.0  # m: the sensors report the obstacle this much farther than it is
+    closing_bias: float = 0.0   # m/s: and closing this much faster (negative: slower)
 
     @property
     def buildup_s(self) -> float:
@@ -91,7 +94,9 @@ class World:
              "brake_delay": self.dead_s, "brake_buildup": self.ramp_s, "gradient": self.gradient,
              "traction_cutoff": self.traction_s, "speed_error": self.speed_error, "max_traction": self.max_traction,
              "track_condition": self.track, "brake_status": self.brake, "slippery_factor": self.slippery_factor,
-             "degraded_factor": self.degraded_factor, "davis_a": 0.0, "davis_b": 0.0, "davis_c": 0.0}
+             "degraded_factor": self.degraded_factor, "davis_a": 0.0, "davis_b": 0.0, "davis_c": 0.0,
+             "sensor.distance_bias": self.distance_bias, "sensor.closing_bias": self.closing_bias,
+             "sensor.noise_sigma": 0.0}      # (the bias is the accuracy's corner: noise on it would leave the budget)
         for i, (speed, decel) in enumerate(self.bands[1:], start=2):
             p[f"emergency_band{i}_speed"], p[f"emergency_band{i}_decel"] = speed, decel
         return p
@@ -154,14 +159,21 @@ def declared_bands(values: dict) -> tuple:
     return ((0.0, float(raw)),) if not isinstance(raw, list) else tuple((float(s), float(a)) for s, a in raw)
 
 
+def sensor_corner(cfg: Config) -> tuple[float, float]:
+    """(distance bias m, closing bias m/s) of sensors at their declared accuracy's worst (the
+    error budget's corner): every reading reports the obstacle the whole distance accuracy
+    farther and closing the whole closing accuracy slower than it is."""
+    return cfg.distance_accuracy_dm / 10, -cfg.closing_accuracy_cms / 100
+
+
 def first_visible_m(cfg: Config, speed: float, obstacle_speed: float, world: World) -> float:
     """Where the curves say a brake must start (EBI as the monitor computes it from what
-    the train reports), less one cycle of travel at the closing speed: the first reading
-    comes one cycle after the last one that found the obstacle beyond EBI."""
+    the train and the sensors report), less one cycle of travel at the closing speed: the
+    first reading comes one cycle after the last one that found the obstacle beyond EBI."""
     closing = speed - obstacle_speed
     measured = read_speed_cms(speed / (1.0 + world.speed_error))
-    ebi = curves(cfg, measured, world.track, world.brake, read_closing_cms(closing), 0).ebi_dm / 10
-    return ebi - closing * PERIOD_S
+    ebi = curves(cfg, measured, world.track, world.brake, read_closing_cms(closing + world.closing_bias), 0).ebi_dm / 10
+    return ebi - world.distance_bias - closing * PERIOD_S
 
 
 def grid_worlds(values: dict) -> list[World]:
@@ -171,7 +183,8 @@ def grid_worlds(values: dict) -> list[World]:
     steepest downhill, level, uphill; pulling at full traction until the demand and held
     for traction_cutoff_s after it, or cruising and cut at once; the speed reported low by
     speed_error or exact; normal, slippery (deceleration x slippery_factor) or degraded
-    (x degraded_factor) reported."""
+    (x degraded_factor) reported; the sensors at the error budget's corner (sensor_corner)."""
+    bias, closing_bias = sensor_corner(apply(Config(), values))
     t_be = values["emergency_buildup_s"]
     decels = ((declared_bands(values), float(values["service_decel"])), (((0.0, NOMINAL_DECEL),), NOMINAL_SERVICE))
     timings = ((t_be, 0.0), (0.0, 2 * t_be), (t_be / 2, t_be))
@@ -182,7 +195,8 @@ def grid_worlds(values: dict) -> list[World]:
             decels, timings, gradients, (float(values["traction_cutoff_s"]), 0.0),
             (float(values["speed_error"]), 0.0), conditions):
         worlds.append(World(bands, service, dead, ramp, grad, traction, err, float(values["max_accel"]), track, brake,
-                            float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=traction > 0))
+                            float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=traction > 0,
+                            distance_bias=bias, closing_bias=closing_bias))
     return worlds
 
 
@@ -239,11 +253,13 @@ BUILDUP_S = (1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0)
 def hardest_world(values: dict) -> World:
     """The grid's hardest corner: guaranteed decelerations, all dead time, steepest
     downhill, pulling until the demand and traction held, speed reported low, normal
-    conditions."""
+    conditions, the sensors at the error budget's corner."""
+    bias, closing_bias = sensor_corner(apply(Config(), values))
     return World(declared_bands(values), float(values["service_decel"]), float(values["emergency_buildup_s"]), 0.0,
                  -float(values["max_downhill_gradient"]), float(values["traction_cutoff_s"]),
                  float(values["speed_error"]), float(values["max_accel"]), 0, 0,
-                 float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=True)
+                 float(values["slippery_factor"]), float(values["degraded_factor"]), pulling=True,
+                 distance_bias=bias, closing_bias=closing_bias)
 
 
 def beyond_cases(values: dict) -> dict:

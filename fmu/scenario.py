@@ -61,7 +61,8 @@ def train_parameters(scen: _ground.Scenario) -> dict:
                   "obstacle.type": _ground.OBSTACLE_TYPES.index(o.type), "obstacle.leave_time": o.leave_s})
     s = scen.sensors
     p.update({"sensor.range": s.range_m, "sensor.noise_sigma": s.noise_sigma_m,
-              "sensor.miss_probability": s.miss_probability, "sensor.seed": s.seed})
+              "sensor.miss_probability": s.miss_probability, "sensor.seed": s.seed,
+              "sensor.distance_bias": s.distance_bias_m, "sensor.closing_bias": s.closing_bias_mps})
     p["fault.kind"] = 0
     if scen.faults and scen.faults[0].kind != "monitor_stop":     # (the master's fault, not the train's)
         f = scen.faults[0]

@@ -78,9 +78,10 @@ PARAMETER_DOCS = {
                        "1..60000",
     "forget_single_ms": "obstacle memory: the same as forget_ms for an obstacle only one module ever saw (its "
                         "ghosts), ms (at most forget_ms counts), 1..600000",
-    "distance_accuracy_dm": "plausibility: the sensors' declared distance accuracy (a report is within this of the "
-                            "truth), dm, 0..60000",
-    "closing_accuracy_cms": "plausibility: the sensors' declared closing-speed accuracy, cm/s, 0..15000",
+    "distance_accuracy_dm": "error budget and plausibility: the sensors' declared distance accuracy (a report is "
+                            "within this of the truth; the curves and the memory count it), dm, 0..60000",
+    "closing_accuracy_cms": "error budget and plausibility: the sensors' declared closing-speed accuracy (the curves "
+                            "and the memory count it), cm/s, 0..15000",
     "plausibility_ms": "plausibility: an implausible channel (its distance did not shrink as its closing speed "
                        "says) is believed again after this long of plausible reports, ms, 1..60000",
 }
@@ -215,6 +216,10 @@ def _train() -> list[Var]:
         Var("sensor.range", "Real", P, "fixed", 400.0, "m", "sensors see an obstacle closer than this", 0.0),
         Var("sensor.noise_sigma", "Real", P, "fixed", 0.3, "m", "standard deviation of the Gaussian distance noise", 0.0),
         Var("sensor.miss_probability", "Real", P, "fixed", 0.0, None, "probability that a channel misses a visible obstacle in a sample", 0.0, 1.0),
+        Var("sensor.distance_bias", "Real", P, "fixed", 0.0, "m", "systematic error added to every reported distance "
+            "(a sensor that errs inside its declared accuracy: + reports the obstacle farther)"),
+        Var("sensor.closing_bias", "Real", P, "fixed", 0.0, "m/s", "systematic error added to every reported closing "
+            "speed (- reports the obstacle closing slower)"),
         Var("sensor.period", "Real", P, "fixed", 0.1, "s", "sensor reporting period", 0.01),
         Var("sensor.seed", "Integer", P, "fixed", 1, None, "seed of the sensor noise (same seed, same run)"),
         Var("fault.kind", "Integer", P, "fixed", 0, None,

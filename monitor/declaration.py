@@ -14,6 +14,11 @@ Keys (docs/supervision.md gives each one's meaning and the shipped train's sourc
     degraded_factor        multiplies the decelerations while degraded brakes are reported
     max_downhill_gradient  per mille, the steepest downhill of the line
     standstill_margin_m    stop this far before the obstacle
+and, optional (absent: the monitor's configured sensors, 50 m and 1 m/s by default), the
+sensors' guaranteed accuracy, which the supervised curves and the memory count (the error
+budget, docs/supervision.md 2.6):
+    distance_accuracy_m    a reported distance is within this of the true one
+    closing_accuracy_mps   a reported closing speed is within this of the true one
 """
 from __future__ import annotations
 
@@ -32,6 +37,7 @@ SHIPPED = "papers-train"
 KEYS = ("emergency_decel", "service_decel", "emergency_buildup_s", "service_buildup_s", "traction_cutoff_s",
         "max_accel", "speed_error", "slippery_factor", "degraded_factor", "max_downhill_gradient",
         "standstill_margin_m")
+OPTIONAL = ("distance_accuracy_m", "closing_accuracy_mps")     # the sensors': absent, the configured ones
 
 
 class DeclarationError(ValueError):
@@ -79,9 +85,9 @@ def _bands(where: str, value) -> list[tuple[int, int]]:
 
 def fields(values: dict, where: str = "braking declaration") -> dict:
     """The Config fields of a declaration mapping (all keys required); unknown keys refused."""
-    unknown = sorted(set(values) - set(KEYS))
+    unknown = sorted(set(values) - set(KEYS) - set(OPTIONAL))
     if unknown:
-        raise DeclarationError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(KEYS)}")
+        raise DeclarationError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(KEYS + OPTIONAL)}")
     missing = [k for k in KEYS if k not in values]
     if missing:
         raise DeclarationError(f"{where}: missing key(s) {', '.join(missing)}")
@@ -100,6 +106,10 @@ def fields(values: dict, where: str = "braking declaration") -> dict:
         out[field] = _down(_number(where, key, values[key], 0.001, 1.0), 1000)
     out["max_gradient_permille"] = _up(_number(where, "max_downhill_gradient", values["max_downhill_gradient"], 0.0, 60.0), 1)
     out["standstill_margin_dm"] = _up(_number(where, "standstill_margin_m", values["standstill_margin_m"], 0.0, 1000.0), 10)
+    if "distance_accuracy_m" in values:        # errors round up: a larger error is the safe side
+        out["distance_accuracy_dm"] = _up(_number(where, "distance_accuracy_m", values["distance_accuracy_m"], 0.0, 6000.0), 10)
+    if "closing_accuracy_mps" in values:
+        out["closing_accuracy_cms"] = _up(_number(where, "closing_accuracy_mps", values["closing_accuracy_mps"], 0.0, 150.0), 100)
     return out
 
 

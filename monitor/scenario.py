@@ -9,10 +9,9 @@ table it is meant for and campaign settings. Three players play scenarios:
 * ``cosim``    the train FMU + monitor FMU closed loop in FMPy (`railguard cosim`, fmu);
 * ``campaign`` the fault campaign's worlds (`railguard campaign`, verification).
 
-Each player adapts a `Scenario` to what it can play and refuses, in one line naming the
-file and the key, what it cannot (`require`); `refusal` says why without raising, and
-`catalogue` lists every shipped scenario with the players that can play it. The language
-is documented key by key in docs/scenarios.md.
+Each player adapts a `Scenario` to what it can play and refuses, in one line naming the file
+and the key, what it cannot (`require`); `refusal` says why without raising; `catalogue` lists
+the shipped scenarios with their players. docs/scenarios.md documents the language key by key.
 
 This module is on the ground floor: it imports nothing from can_bus, fmu or verification.
 """
@@ -120,12 +119,10 @@ class ObstacleSpec:
     hidden_until_s: float = FOREVER_S
     hidden_channels: tuple = ALL_CHANNELS
 
-    def there(self, t: float) -> bool:
-        """On the track at `t` seconds after the train's entry: from appear_s until leave_s."""
+    def there(self, t: float) -> bool:      # on the track `t` s after the train's entry: appear_s until leave_s
         return self.appear_s <= t < self.leave_s
 
-    def seen_by(self, t: float, ch: int) -> bool:
-        """On the track at `t` and not hidden from channel `ch` then."""
+    def seen_by(self, t: float, ch: int) -> bool:      # there, and not hidden from channel `ch` then
         hidden = self.hidden_from_s <= t < self.hidden_until_s and ch in self.hidden_channels
         return self.there(t) and not hidden
 
@@ -136,6 +133,8 @@ class SensorSpec:
     noise_sigma_m: float = 0.5
     miss_probability: float = 0.0
     seed: int = 1
+    distance_bias_m: float = 0.0        # added to every report (+: farther); closing_bias_mps: to every closing speed
+    closing_bias_mps: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -192,7 +191,7 @@ LIMITS = {
     "hidden_from_s": (0.0, FOREVER_S), "hidden_until_s": (0.0, FOREVER_S), "hidden_channel": (0, 5),
     "obstacle_speed_mps": (-120.0, 120.0),
     "range_m": (0.0, 6000.0), "noise_sigma_m": (0.0, 1000.0), "miss_probability": (0.0, 1.0),
-    "seed": (0, 2**31 - 1), "channel": (0, 5), "start_s": (0.0, 86400.0), "end_s": (0.0, FOREVER_S),
+    "distance_bias_m": (-6000.0, 6000.0), "closing_bias_mps": (-150.0, 150.0), "seed": (0, 2**31 - 1), "channel": (0, 5), "start_s": (0.0, 86400.0), "end_s": (0.0, FOREVER_S),
     "rate": (1, 200),
 }
 
@@ -553,9 +552,10 @@ def refusal(scen: Scenario, player: str) -> Optional[str]:
         key = _train_beyond(scen.train, ("speed_mps",))
         if key is not None:
             return f"train.{key}: the campaign draws each run's train inside the braking declaration; it plays speed_mps only"
-        if scen.sensors.range_m != SensorSpec.range_m or scen.sensors.noise_sigma_m != SensorSpec.noise_sigma_m:
+        if (scen.sensors.range_m, scen.sensors.noise_sigma_m, scen.sensors.distance_bias_m,
+                scen.sensors.closing_bias_mps) != (SensorSpec.range_m, SensorSpec.noise_sigma_m, 0.0, 0.0):
             return (f"sensors: the campaign's sensors reach {SensorSpec.range_m:g} m with {SensorSpec.noise_sigma_m:g} m "
-                    "noise; it plays those only")
+                    "noise and no bias; it plays those only")
         if scen.sensors.miss_probability != 0.0:
             return "sensors.miss_probability: the campaign's misses are its faults; it plays 0 only"
         if scen.faults:

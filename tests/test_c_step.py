@@ -90,8 +90,8 @@ def _memory() -> list:
     s.add(s.miss()); s.add(s.see(3100, closing=5000)); s.add(s.miss()); s.add(s.see(2150))   # beyond, absorbed
     s.add(s.see(2200, closing=-500))                          # receding
     s.add(s.see(2100)[:4] + s.miss(2))                        # disputed, farther than remembered
-    s.add(s.see(15)); s.add(s.miss, times=2)                  # passed
-    s.add(lambda: s.see(600)[:1] + s.see(750)[:1] + s.miss(4), times=2)   # one module, in dispute: a weak track
+    s.add(s.see(15)); s.add(s.miss, times=19)                 # passed: 1.5 m + the 50 m distance accuracy (~2.9 m a cycle)
+    s.add(lambda: s.see(300)[:1] + s.see(450)[:1] + s.miss(4), times=2)   # one module, in dispute: a weak track
     s.add(s.miss, times=12)                                   # forgotten
     return s.steps
 
@@ -161,8 +161,8 @@ def _symbolic_run(prog, blind: bool):
     setup = cycle.create(cfg, read("m1"))
     calls = []
 
-    def rg_curves(cfg_view, speed, track, brake, closing, age, service, periods, out):
-        calls.append((cfg_view, speed, track, brake, closing, age, service, periods, out))
+    def rg_curves(cfg_view, speed, track, brake, closing, age, service, supervised, out):
+        calls.append((cfg_view, speed, track, brake, closing, age, service, supervised, out))
         for field, value in zip(CURVES, _fresh(speed.ex, CURVES)):
             out.get()[field] = value
 
@@ -204,9 +204,10 @@ def test_the_c_step_runs_symbolically_on_finitely_many_paths_with_a_sighting(pro
         assert not (isinstance(state.tracks[0].near, int) and state.tracks[0].near == NO_TRACK), note
         assert out.demand in (MAINTAIN, SERVICE, EMERGENCY) and isinstance(out.warning, bool), note
     # the summary is given rg_curves' arguments in C's order: cfg, speed, track, brake, closing, age, ...
-    cfg_view, speed, track, brake, closing, age, service, periods, out = calls[0]
+    # (supervised = 1: the supervised curves, RG_SUPERVISED_PERIODS and the sensors' error budget)
+    cfg_view, speed, track, brake, closing, age, service, supervised, out = calls[0]
     assert isinstance(cfg_view, c_symbolic.ConfigView) and isinstance(out, c_symbolic.Ref), note
-    assert speed.term.eq(v) and closing.term.eq(c) and (track, brake, service, periods) == (0, 0, 0, 4), note
+    assert speed.term.eq(v) and closing.term.eq(c) and (track, brake, service, supervised) == (0, 0, 0, 1), note
     assert age == 0, note
     print(note)
 
@@ -219,7 +220,7 @@ def test_the_c_step_runs_symbolically_on_finitely_many_paths_every_channel_blind
     for state, out in runs:        # blind: a system error with a stale channel, the safe reaction (emergency)
         assert (out.distance_dm, out.demand, state.mode) == (NO_DISTANCE, EMERGENCY, DEGRADED_MODE), note
         assert out.reasons & R_STALE, note
-    assert calls and all(call[7] == 4 for call in calls), note       # only the remembered track's curves (RG_SUPERVISED_PERIODS)
+    assert calls and all(call[7] == 1 for call in calls), note       # only the remembered track's curves (supervised)
     print(note)
 
 

@@ -25,28 +25,32 @@ def firm(d, distance: int, speed: int, closing=None, cycles: int = 3):
     return out
 
 
-def near_1500(track_dm: int) -> bool:
-    """150 m, less the worst-case creep of a train that reads 0 cm/s but may accelerate
-    (a T^2 / 2 per cycle: 3.5 mm at the default declaration) over a few dozen cycles."""
-    return 1480 <= track_dm <= 1500
-
-
 def accel(cfg: Config) -> int:
     return cfg.max_accel_mms2 + gradient_accel_mms2(cfg.max_gradient_permille)
+
+
+def at_1500(cfg: Config, moves: int) -> int:
+    """An obstacle remembered 150 m ahead of a standing train, in dm, after `moves` predictions:
+    each the worst-case creep of a train that reads 0 cm/s but may accelerate (a T^2 / 2:
+    3.5 mm at the default declaration) plus the sensors' closing accuracy (the error budget:
+    100 cm/s for a period, 1 dm), so 1.0349 dm a cycle."""
+    step = near_travel(0, cfg.speed_error_permille, accel(cfg), cfg.closing_accuracy_cms, cfg.period_ms)
+    return (1500 * UNITS_PER_DM - moves * step) // UNITS_PER_DM
 
 
 def test_a_blind_spell_after_an_emergency_keeps_the_emergency_on_the_remembered_obstacle():
     """The stress search's defect: every channel goes blind during an emergency braking. The
     remembered obstacle stays inside EBI, so the demand stays emergency (reason memory and
-    envelope, not the latch), and its distance is predicted worst case every cycle."""
+    envelope, not the latch), and its distance is predicted worst case every cycle (its own
+    speed 0 plus the sensors' closing accuracy)."""
     cfg = Config()
     d = normal_driver(cfg, M2)
-    ebi = curves(cfg, V, 0, 0, V, 0).ebi_dm
+    ebi = curves(cfg, V, 0, 0, 0, 0).ebi_dm               # the reports' closing speed: 0
     out = firm(d, ebi - 100, V)
     assert out.demand == EMERGENCY and out.track_state == TRACK_SEEN and out.track_dm == ebi - 100
     near = (ebi - 100) * UNITS_PER_DM
     for k in range(30):                                   # 3 s blind, far longer than the release confirmation
-        near -= near_travel(V, cfg.speed_error_permille, accel(cfg), 0, cfg.period_ms)
+        near -= near_travel(V, cfg.speed_error_permille, accel(cfg), cfg.closing_accuracy_cms, cfg.period_ms)
         out = d.clear(V)
         assert out.demand == EMERGENCY, k
         assert out.reasons & R_MEMORY and out.reasons & R_ENVELOPE and not out.reasons & R_LATCH
@@ -63,10 +67,10 @@ def test_the_track_is_forgotten_at_exactly_the_confirmation_time_and_a_stale_cyc
     for k in range(5):
         assert d.clear(0).track_state == TRACK_CONFIRMING
     out = d.cycle(with_channel(clear(d.tick), 3, None), 0)    # one channel silent: no evidence
-    assert out.track_state == TRACK_HELD and near_1500(out.track_dm)
+    assert out.track_state == TRACK_HELD and out.track_dm == at_1500(cfg, 6)
     for k in range(n - 1):
         out = d.clear(0)
-        assert out.track_state == TRACK_CONFIRMING and near_1500(out.track_dm), k
+        assert out.track_state == TRACK_CONFIRMING and out.track_dm == at_1500(cfg, 7 + k), k
     out = d.clear(0)
     assert out.track_state == TRACK_FORGOTTEN and out.track_dm == NO_DISTANCE
     assert d.clear(0).track_state == TRACK_NONE
@@ -77,21 +81,25 @@ def test_no_evidence_while_the_picture_is_disputed_or_degraded(picture):
     cfg = Config()
     d = normal_driver(cfg, M1)
     firm(d, 1500, 0)
-    for _ in range(3 * forget_cycles(cfg)):
+    for k in range(3 * forget_cycles(cfg)):
         reports = with_channel(clear(d.tick), 2, Report(DEGRADED, 0, 0, STATIC, d.tick)) if picture == "degraded" \
             else disagreeing(d.tick, 30000)
         out = d.cycle(reports, 0)
-        assert out.track_state in (TRACK_HELD, TRACK_SEEN) and near_1500(out.track_dm)
+        assert out.track_state in (TRACK_HELD, TRACK_SEEN) and out.track_dm == at_1500(cfg, k + 1), k
 
 
 def test_absence_beyond_the_declared_sensor_range_is_no_evidence():
-    cfg = Config(sensor_range_dm=1000)
+    """The obstacle at 150 m may lie its distance accuracy (50 m) farther: 200 m, beyond the
+    declared 190 m, so absence is no evidence; seen again at 140 m (190 m counting the
+    accuracy) it is inside the range, and absence forgets it."""
+    cfg = Config(sensor_range_dm=1900)
     d = normal_driver(cfg, M1)
     firm(d, 1500, 0)
-    for _ in range(2 * forget_cycles(cfg)):
+    for k in range(2 * forget_cycles(cfg)):
         out = d.clear(0)
-        assert out.track_state == TRACK_HELD and near_1500(out.track_dm)
-    d.present(900, 0)                                     # seen again inside the range
+        assert out.track_state == TRACK_HELD and out.track_dm == at_1500(cfg, k + 1), k
+    out = d.present(cfg.sensor_range_dm - cfg.distance_accuracy_dm, 0)     # seen again inside the range
+    assert out.track_state == TRACK_SEEN and out.track_dm == 1400
     for _ in range(forget_cycles(cfg) - 1):
         assert d.clear(0).track_state == TRACK_CONFIRMING
     assert d.clear(0).track_state == TRACK_FORGOTTEN
@@ -99,7 +107,8 @@ def test_absence_beyond_the_declared_sensor_range_is_no_evidence():
 
 def test_a_passed_position_is_forgotten_when_the_train_s_least_travel_takes_it_beyond():
     """The train keeps running (a train that does not brake as declared, or a track beside
-    the line): the track is forgotten once the least possible travel passes it."""
+    the line): the track is forgotten once the least possible travel passes it by more than
+    the sensors' distance accuracy (the obstacle may lie that much farther than reported)."""
     cfg = Config(emergency_release=1, sensor_range_dm=1)  # no evidence can count: only passing forgets
     d = normal_driver(cfg, M1)
     d.present(300, 1000)                                  # 30 m ahead at 10 m/s
@@ -110,18 +119,18 @@ def test_a_passed_position_is_forgotten_when_the_train_s_least_travel_takes_it_b
         far -= least
         out = d.clear(1000)
         k += 1
-        if far < 0:
+        if far + cfg.distance_accuracy_dm * UNITS_PER_DM < 0:
             break
         assert out.track_state == TRACK_HELD, k
     assert out.track_state == TRACK_PASSED and out.track_dm == NO_DISTANCE
-    assert k == 300 * UNITS_PER_DM // least + 1
+    assert k == (300 + cfg.distance_accuracy_dm) * UNITS_PER_DM // least + 1 == 82
 
 
 def test_an_oncoming_obstacle_keeps_closing_while_the_train_stands():
     cfg = Config()
     d = normal_driver(cfg, M2)
     firm(d, 3000, 0, closing=2000)                        # closing at 20 m/s, the train stands
-    step = near_travel(0, cfg.speed_error_permille, accel(cfg), 2000, cfg.period_ms)
+    step = near_travel(0, cfg.speed_error_permille, accel(cfg), 2000 + cfg.closing_accuracy_cms, cfg.period_ms)
     out = d.clear(0)
     assert out.track_dm == (3000 * UNITS_PER_DM - step) // UNITS_PER_DM
     out = d.clear(0)
@@ -136,8 +145,10 @@ def test_a_receding_obstacle_is_remembered_as_stopped():
 
 
 # pictures that jump farther than their closing speed allows are implausible (plausibility.py);
-# the tests of other rules that jump use sensors declared 6 km inaccurate, which never are
-JUMPY = Config(distance_accuracy_dm=60000)
+# the tests of other rules that jump use a plausibility window shorter than the period: two
+# reports are never close enough in time to be compared, so no jump is implausible (a wide
+# distance accuracy would do it too, but it is also the curves' and the memory's error budget)
+JUMPY = Config(plausibility_ms=1)
 
 
 def test_a_disputed_sighting_never_creates_a_track_and_a_farther_one_never_hides_a_nearer_track():
@@ -146,11 +157,12 @@ def test_a_disputed_sighting_never_creates_a_track_and_a_farther_one_never_hides
     assert out.track_state == TRACK_NONE and out.track_dm == NO_DISTANCE
     firm(d, 1500, 0)
     out = d.cycle(disagreeing(d.tick, 2500), 0)           # one channel sees something farther
-    assert near_1500(out.track_dm) and out.reasons & R_MEMORY
+    assert out.track_dm == at_1500(JUMPY, 1) and out.reasons & R_MEMORY
     out = d.cycle(disagreeing(d.tick, 1200), 0)           # a nearer disputed one brings it nearer
     assert out.track_dm == 1200
-    out = d.present(2500, 0)                              # every module sees it farther: replaced
-    assert out.track_dm == 2500 and not out.reasons & R_MEMORY
+    # every module sees it farther, within the two reports' accuracy (2 x 50 m): replaced
+    out = d.present(1200 + 2 * JUMPY.distance_accuracy_dm, 0)
+    assert out.track_dm == 2200 and not out.reasons & R_MEMORY
 
 
 def test_a_farther_obstacle_seen_by_every_module_is_evidence_against_the_nearer_one_not_a_replacement():
@@ -163,12 +175,15 @@ def test_a_farther_obstacle_seen_by_every_module_is_evidence_against_the_nearer_
     n = forget_cycles(cfg)
     d = normal_driver(cfg, M2)
     firm(d, 3000, 0, cycles=2)
+    # A moved every cycle: the train's creep and the closing accuracy (1.0349 dm)
+    step = near_travel(0, cfg.speed_error_permille, accel(cfg), cfg.closing_accuracy_cms, cfg.period_ms)
     out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), 0)   # blind
-    assert out.track_state == TRACK_HELD and 2990 <= out.track_dm <= 3000
+    assert out.track_state == TRACK_HELD and out.track_dm == (3000 * UNITS_PER_DM - step) // UNITS_PER_DM
     for k in range(n - 1):
         out = d.present(20000, 0)
         assert out.distance_dm == 20000 and not out.system_error, k
-        assert out.track_state == TRACK_CONFIRMING and 2990 <= out.track_dm <= 3000 and out.reasons & R_MEMORY, k
+        assert out.track_state == TRACK_CONFIRMING and out.reasons & R_MEMORY, k
+        assert out.track_dm == (3000 * UNITS_PER_DM - (k + 2) * step) // UNITS_PER_DM, k
     out = d.present(20000, 0)
     assert out.track_state == TRACK_FORGOTTEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
     # a blind or disputed cycle between B's sightings restarts the evidence, as for ABSENT
@@ -201,7 +216,8 @@ def test_seen_beyond_is_strictly_farther_than_the_track_plus_two_accuracies():
 def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_itself():
     """Once B replaces the forgotten A (the state says A was forgotten, the distance is B's) it
     is a track like any other: no memory reason,
-    predicted from B's own closing speed (a static obstacle: the train's worst-case travel)."""
+    predicted from B's own closing speed (a static obstacle: the train's worst-case travel and
+    the sensors' closing accuracy)."""
     cfg = Config(forget_ms=300)
     n = forget_cycles(cfg)
     d = normal_driver(cfg, M2)
@@ -211,7 +227,8 @@ def test_the_farther_sighting_that_replaces_a_forgotten_track_is_predicted_as_it
         assert d.present(20000, V).track_state == TRACK_CONFIRMING
     out = d.present(20000, V)
     assert out.track_state == TRACK_FORGOTTEN and out.track_dm == 20000 and not out.reasons & R_MEMORY
-    step = near_travel(V, cfg.speed_error_permille, accel(cfg), 0, cfg.period_ms)   # (reported closing 0)
+    # (reported closing 0: taken to stop) plus the closing accuracy
+    step = near_travel(V, cfg.speed_error_permille, accel(cfg), 0 + cfg.closing_accuracy_cms, cfg.period_ms)
     out = d.cycle(tuple(Report(DEGRADED, 0, 0, STATIC, d.tick) for _ in range(6)), V)
     assert out.track_dm == (20000 * UNITS_PER_DM - step) // UNITS_PER_DM and out.track_state == TRACK_HELD
 
@@ -255,13 +272,16 @@ def test_a_disputed_sighting_ahead_of_the_track_is_another_obstacle_and_each_kee
 
 def test_release_on_evidence_outside_the_curve_for_the_remembered_obstacle():
     """A remembered obstacle beyond SBI no longer demands: a held emergency is released after
-    the confirmation cycles although the obstacle is still remembered."""
-    cfg = JUMPY
+    the confirmation cycles although the obstacle is still remembered (inside the sensor
+    range counting its accuracy: absence counts)."""
+    cfg = Config()                                        # (350 m after 350.5 m: no jump, plausible)
     c = curves(cfg, V, 0, 0, V, 0)
     d = normal_driver(cfg, M1)
     d.cycle(with_channel(clear(d.tick), 0, Report(PRESENT, c.ebi_dm - 5, V, STATIC, d.tick)), V)   # a dispute inside EBI
     assert d.state.held == EMERGENCY
-    out = firm(d, c.sbi_dm + 400, 1000)                  # confirmed, far beyond SBI at 10 m/s: calm 3
+    at = cfg.sensor_range_dm - cfg.distance_accuracy_dm  # 350 m: its farthest (400 m) inside the range
+    assert at > curves(cfg, 1000, 0, 0, 1000, 0).sbi_dm + 2000
+    out = firm(d, at, 1000)                               # confirmed, far beyond SBI at 10 m/s: calm 3
     assert out.track_state == TRACK_SEEN and out.demand == EMERGENCY
     for k in range(cfg.release_confirm_cycles - 4):
         out = d.clear(1000)

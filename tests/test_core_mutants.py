@@ -612,17 +612,25 @@ def test_obstacle_run_and_scaled_decelerations_are_rounded_to_the_safe_side():
 
 
 def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: int, age: int, service: bool = False,
-                     periods: int = 4):
+                     supervised: bool = True):
     """EBD, EBI, SBI and warning (dm) written out again from docs/supervision.md in exact
     fractions of SI units, every term rounded to the safe side on its own as the document
-    says (distances and speeds up, decelerations down), without monitor.core.braking."""
+    says (distances and speeds up, decelerations down), without monitor.core.braking.
+
+    `supervised` (braking.curves): four periods in EBI's reaction and the sensors' error
+    budget (section 2.6: every curve + the distance accuracy a_d, the obstacle's own speed
+    from closing + the closing accuracy a_c); not `supervised` (braking.ebi_dm, the table's
+    zone limits): the demand's one period and no budget."""
     import math
     from fractions import Fraction as F
 
     up = math.ceil
+    periods = 4 if supervised else 1
+    a_d = cfg.distance_accuracy_dm if supervised else 0          # dm: the obstacle may be this much nearer
+    a_c = cfg.closing_accuracy_cms if supervised else 0          # cm/s: and close this much faster
     e = cfg.speed_error_permille
     v_max = up(F(speed * (1000 + e), 1000))                       # cm/s, measured speed + error
-    obstacle = closing - math.floor(F(speed * (1000 - e), 1000))  # the obstacle's own speed towards us
+    obstacle = closing + a_c - math.floor(F(speed * (1000 - e), 1000))  # the obstacle's own speed towards us
     g = up(F(9810 * cfg.max_gradient_permille, 1000))             # mm/s^2 downhill
     if service:
         raw, buildup = [(0, cfg.service_decel_mms2)], cfg.service_buildup_ms
@@ -668,9 +676,9 @@ def reference_curves(cfg: Config, speed: int, track: int, brake: int, closing: i
     t2 = max(0, buildup - cfg.traction_cutoff_ms)
     s2, v2 = run(v1, g, t2), after(v1, g, t2)
     s3, t3 = stop(v2)
-    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + closes(t1 + t2 + t3)
+    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + a_d + closes(t1 + t2 + t3)
     d0, tt0 = stop(speed)
-    ebd = d0 + cfg.standstill_margin_dm + closes(tt0)
+    ebd = d0 + cfg.standstill_margin_dm + a_d + closes(tt0)
     lead = v_max + max(obstacle, 0)
     sbi = ebi + run(lead, 0, cfg.service_buildup_ms)
     warning = sbi + run(lead, 0, cfg.warning_ms)
@@ -688,6 +696,8 @@ CURVE_CONFIGS = {
     "steep and uncertain": Config(max_gradient_permille=60, speed_error_permille=500, max_accel_mms2=5000,
                                   emergency_decel_mms2=4000, emergency_band2_mms2=3900, service_decel_mms2=3000),
     "odd lead times": Config(service_buildup_ms=1001, warning_ms=1999, speed_error_permille=0),
+    "odd error budget": Config(distance_accuracy_dm=123, closing_accuracy_cms=37),
+    "exact sensors": Config(distance_accuracy_dm=0, closing_accuracy_cms=0),
 }
 
 
@@ -712,7 +722,10 @@ def test_curves_equal_the_exact_construction_term_by_term(name):
     written out again in exact fractions, at 0, 1 and 2 cm/s, at and beside every band edge,
     at the top speed, at speeds whose lead run ends just past a whole dm and at
     deterministic random speeds, under every track/brake condition,
-    for obstacles closing, standing, moving away and oncoming, with report ages 0..timeout."""
+    for obstacles closing, standing, moving away and oncoming (standing: closing = speed as
+    measured, and closing = speed less the closing accuracy, where the budget's obstacle
+    stands), with report ages 0..timeout. The supervised curves count the sensors' error
+    budget, the zone limits do not (docs/supervision.md 2.6)."""
     import random
 
     from monitor.core.braking import curves, ebi_dm
@@ -726,15 +739,15 @@ def test_curves_equal_the_exact_construction_term_by_term(name):
     speeds |= {rnd.randrange(0, 12001) for _ in range(12)} | _just_past_a_whole_dm(cfg)
     for speed in sorted(speeds):
         for track, brake in ((0, 0), (1, 0), (0, 1), (1, 1)):
-            for closing in (speed, 0, -500, speed + 1500, min(15000, speed + 9000)):
+            for closing in (speed, speed - cfg.closing_accuracy_cms, 0, -500, speed + 1500, min(15000, speed + 9000)):
                 age = rnd.choice([0, 1, 100, 300])
                 want = reference_curves(cfg, speed, track, brake, closing, age)
                 assert tuple(curves(cfg, speed, track, brake, closing, age)) == want, (speed, track, brake, closing, age)
-                zone = reference_curves(cfg, speed, track, brake, closing, age, periods=1)
+                zone = reference_curves(cfg, speed, track, brake, closing, age, supervised=False)
                 assert ebi_dm(cfg, speed, track, brake, closing, age) == zone[1]
                 svc = reference_curves(cfg, speed, track, brake, closing, age, service=True)
                 assert tuple(curves(cfg, speed, track, brake, closing, age, service=True)) == svc
-                svc_zone = reference_curves(cfg, speed, track, brake, closing, age, service=True, periods=1)
+                svc_zone = reference_curves(cfg, speed, track, brake, closing, age, service=True, supervised=False)
                 assert ebi_dm(cfg, speed, track, brake, closing, age, service=True) == svc_zone[1]
                 assert zone[1] <= want[1]                 # the zone limit is never beyond the supervised EBI
 
@@ -1044,18 +1057,31 @@ def test_system_status_is_the_maximum_under_safe_reaction_service(silent):
 
 def test_an_obstacle_of_its_own_speed_1_cms_lengthens_the_lead():
     """SBI and the warning curve lead EBI by the run at the measured speed plus its error
-    plus an oncoming obstacle's own speed: at 49 cm/s (50 with the 2 % error) an obstacle
-    closing at 49 cm/s is itself coming at 1 cm/s, so the lead is 51 cm/s and each curve
-    leads by ceil(51 x 2 s) = 11 dm (10 dm for an obstacle standing still: closing 48); an
-    obstacle moving away never shortens the lead (50 cm/s, closing 48: still 51 cm/s, 11 dm)."""
+    plus an oncoming obstacle's own speed, counted from the closing speed plus the closing
+    accuracy (1 m/s, the error budget): at 49 cm/s (50 with the 2 % error) an obstacle
+    measured closing at -51 cm/s may close at 49 cm/s, so it is itself coming at 1 cm/s, the
+    lead is 51 cm/s and each curve leads by ceil(51 x 2 s) = 11 dm (10 dm for an obstacle
+    that may at worst stand still: measured -52); an obstacle moving away never shortens the
+    lead (50 cm/s, measured -52, at worst 48: still 51 cm/s, 11 dm). Without the budget
+    (exact sensors) the same holds at the measured closing speeds 49, 48 and 48."""
     from monitor.core.braking import curves
 
-    oncoming = curves(Config(), 49, 0, 0, 49, 0)
-    standing = curves(Config(), 49, 0, 0, 48, 0)
+    cfg = Config()
+    assert cfg.closing_accuracy_cms == 100
+    oncoming = curves(cfg, 49, 0, 0, -51, 0)
+    standing = curves(cfg, 49, 0, 0, -52, 0)
     assert (oncoming.sbi_dm - oncoming.ebi_dm, oncoming.warning_dm - oncoming.sbi_dm) == (11, 11)
     assert (standing.sbi_dm - standing.ebi_dm, standing.warning_dm - standing.sbi_dm) == (10, 10)
-    assert tuple(oncoming) == reference_curves(Config(), 49, 0, 0, 49, 0)
-    away = curves(Config(), 50, 0, 0, 48, 0)       # 51 cm/s with the error; the obstacle moves away at 1 cm/s
+    assert tuple(oncoming) == reference_curves(cfg, 49, 0, 0, -51, 0)
+    away = curves(cfg, 50, 0, 0, -52, 0)           # 51 cm/s with the error; the obstacle moves away at 1 cm/s
+    assert (away.sbi_dm - away.ebi_dm, away.warning_dm - away.sbi_dm) == (11, 11)
+    exact = Config(closing_accuracy_cms=0)
+    oncoming = curves(exact, 49, 0, 0, 49, 0)
+    standing = curves(exact, 49, 0, 0, 48, 0)
+    assert (oncoming.sbi_dm - oncoming.ebi_dm, oncoming.warning_dm - oncoming.sbi_dm) == (11, 11)
+    assert (standing.sbi_dm - standing.ebi_dm, standing.warning_dm - standing.sbi_dm) == (10, 10)
+    assert tuple(oncoming) == reference_curves(exact, 49, 0, 0, 49, 0)
+    away = curves(exact, 50, 0, 0, 48, 0)
     assert (away.sbi_dm - away.ebi_dm, away.warning_dm - away.sbi_dm) == (11, 11)
 
 

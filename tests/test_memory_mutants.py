@@ -34,6 +34,10 @@ V = 3000                  # 30 m/s
 # the default declaration: speed error 20 per mille, traction 500 + 20 per mille downhill
 # (9810 * 20 / 1000 = 196.2, rounded up to 197) = 697 mm/s^2
 ERR, ACCEL = 20, 697
+# the sensors' default accuracy, counted by the memory (the error budget): a remembered
+# obstacle closes 100 cm/s faster than its own speed (10,000 units a period), and may lie
+# 500 dm (5,000,000 units) farther than reported (what "passed" and "in range" read)
+CLOSING_ACC, DISTANCE_ACC = 100, 500
 # a declaration whose prediction is exact to the unit: no speed error, 198 mm/s^2 of
 # traction on the level: a T^2 / 2 = 198 * 100^2 / 20000 = 99 units per cycle
 EXACT = dict(speed_error_permille=0, max_accel_mms2=198, max_gradient_permille=0)
@@ -116,27 +120,27 @@ def test_forget_leaves_no_evidence_count_behind_when_the_track_goes():
 def test_a_static_obstacle_is_remembered_with_the_train_s_speed_error_as_its_own_speed():
     """The train's share of a closing speed is its speed less the speed error (3000 cm/s
     reads 2940 at 20 per mille), so a static obstacle reported closing at the train's 3000
-    cm/s is remembered closing at 60 cm/s of its own; the prediction moves it 312,349 units
-    (31.2 dm) a cycle at 30 m/s."""
+    cm/s is remembered closing at 60 cm/s of its own; the prediction, with the closing
+    accuracy (100 cm/s) on top, moves it 322,349 units (32.2 dm) a cycle at 30 m/s."""
     d = normal_driver(Config())
     out = d.cycle(present(d.tick, 3000, closing=V), V)
     assert out.track_state == TRACK_SEEN and out.track_dm == 3000
     assert d.state.track_closing == 60
-    assert travel(V, 60) == 312349
-    assert d.state.track_near == 3000 * U - 312349 and d.state.track_far == 3000 * U
+    assert travel(V, 60 + CLOSING_ACC) == 322349
+    assert d.state.track_near == 3000 * U - 322349 and d.state.track_far == 3000 * U
     out = d.clear(V)
-    assert out.track_dm == 2968 and out.track_state == TRACK_CONFIRMING        # 2968.77 dm, rounded down
-    assert d.state.track_near == 3000 * U - 2 * 312349
+    assert out.track_dm == 2967 and out.track_state == TRACK_CONFIRMING        # 2967.77 dm, rounded down
+    assert d.state.track_near == 3000 * U - 2 * 322349
     assert d.state.track_far == 3000 * U - (2940 * 100 - 349)                  # the train's least travel
 
 
 def test_a_remembered_position_is_predicted_to_the_unit():
-    """No speed error, 198 mm/s^2 on the level, 99 cm/s, a static obstacle 1 dm ahead: the
-    worst case moves it 9900 + 99 units in a cycle, so 1 unit of the 10,000 remains; an
-    obstacle at 0 dm stays at 0 (never below)."""
+    """No speed error, 198 mm/s^2 on the level, 99 cm/s, a static obstacle 2 dm ahead: the
+    worst case moves it 9900 + 99 + 10,000 (the closing accuracy, 100 cm/s) units in a
+    cycle, so 1 unit of the 20,000 remains; an obstacle at 0 dm stays at 0 (never below)."""
     d = normal_driver(Config(**EXACT))
-    out = d.cycle(present(d.tick, 1, closing=99), 99)
-    assert out.track_dm == 1 and d.state.track_closing == 0
+    out = d.cycle(present(d.tick, 2, closing=99), 99)
+    assert out.track_dm == 2 and d.state.track_closing == 0
     assert d.state.track_near == 1
     d = normal_driver(Config())
     out = d.cycle(present(d.tick, 0, closing=V), V)
@@ -144,31 +148,41 @@ def test_a_remembered_position_is_predicted_to_the_unit():
 
 
 def test_absence_counts_as_evidence_exactly_up_to_the_declared_sensor_range():
-    """The defaults (sensor_range_dm = 4000): a standing train's remembered obstacle at
-    exactly 400.0 m is inside the range (evidence counts: confirming), at 400.1 m it is not
-    (held)."""
+    """The defaults (sensor_range_dm = 4000, distance accuracy 500 dm): a standing train's
+    remembered obstacle at exactly 350.0 m, which may lie at 400.0 m, is inside the range
+    (evidence counts: confirming), at 350.1 m it is not (held)."""
     cfg = Config()
-    assert cfg.sensor_range_dm == 4000
+    assert (cfg.sensor_range_dm, cfg.distance_accuracy_dm) == (4000, DISTANCE_ACC)
     d = normal_driver(cfg)
-    d.present(4000, 0)
+    d.present(3500, 0)
     out = d.clear(0)
-    assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 4000 * U and d.state.track_absent == 1
+    assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 3500 * U and d.state.track_absent == 1
     d = normal_driver(cfg)
-    d.present(4001, 0)
+    d.present(3501, 0)
     out = d.clear(0)
-    assert out.track_state == TRACK_HELD and d.state.track_far == 4001 * U and d.state.track_absent == 0
+    assert out.track_state == TRACK_HELD and d.state.track_far == 3501 * U and d.state.track_absent == 0
 
 
 def test_passed_is_beyond_the_remembered_position_by_at_least_one_unit():
-    """An obstacle at 0 dm and a standing train: the least travel is 0 and the position is
-    reached, not passed (evidence counts). With a least travel of exactly 1 unit (1 cm/s,
-    no speed error, 99 units explained by acceleration) it is passed after one cycle."""
+    """Passed is beyond the remembered position plus the distance accuracy (500 dm: the
+    obstacle may lie that much farther) by at least one unit. An obstacle at 0 dm and a
+    standing train: the least travel is 0, not passed (evidence counts). An obstacle at
+    9.5 m, then 99 cycles at 6.02 m/s (no speed error, 99 units explained by acceleration:
+    60,101 units each, 5,949,999 in all) leave it 1 unit short of its 50 m of accuracy behind
+    the train; a least travel of exactly 1 unit (1 cm/s) reaches that, not passed, and one
+    more unit passes it."""
     d = normal_driver(Config())
     d.present(0, 0)
     out = d.clear(0)
     assert out.track_state == TRACK_CONFIRMING and d.state.track_far == 0
-    d = normal_driver(Config(**EXACT))
-    d.present(0, 1)
+    d = normal_driver(Config(**EXACT, forget_ms=60000))          # (absence forgets nothing meanwhile)
+    d.present(95, 0)
+    for k in range(99):
+        out = d.clear(602)
+        assert out.track_state == TRACK_CONFIRMING, k
+    assert d.state.track_far == 95 * U - 99 * 60101 == -DISTANCE_ACC * U + 1
+    out = d.clear(1)
+    assert out.track_state == TRACK_CONFIRMING and d.state.track_far == -DISTANCE_ACC * U
     out = d.clear(1)
     assert out.track_state == TRACK_PASSED and out.track_dm == 65535
 
@@ -194,11 +208,12 @@ def test_a_report_s_age_is_counted_once_and_a_forgotten_or_passed_track_leaves_n
     reports = tuple(Report(PRESENT, 1000, 2000, STATIC, d.tick - 100) for _ in range(6))
     d.cycle(reports, 0)
     assert d.state.track_closing == 2000
-    assert d.state.track_near == 1000 * U - travel(0, 2000, period=200)
+    assert d.state.track_near == 1000 * U - travel(0, 2000 + CLOSING_ACC, period=200)
     out = d.clear(0)
     assert out.track_state == TRACK_FORGOTTEN
     assert (d.state.track_near, d.state.track_far, d.state.track_closing) == (-1, -1, 0)
-    d = normal_driver(Config(**EXACT))
+    # (sensors declared exact in distance: passed after a least travel of 1 unit)
+    d = normal_driver(Config(**EXACT, distance_accuracy_dm=0))
     d.cycle(tuple(Report(PRESENT, 0, 500, STATIC, d.tick - 100) for _ in range(6)), 1)
     assert d.state.track_closing == 499
     assert d.clear(1).track_state == TRACK_PASSED
@@ -206,16 +221,17 @@ def test_a_report_s_age_is_counted_once_and_a_forgotten_or_passed_track_leaves_n
     d = normal_driver(Config())
     d.cycle(tuple(Report(PRESENT, 3000, V, STATIC, d.tick - 200) for _ in range(6)), V)
     first = 3000 * U - d.state.track_near
-    assert first == travel(V, 60, period=300)                 # the period and the 200 ms age, at 30 m/s
+    assert first == travel(V, 60 + CLOSING_ACC, period=300)   # the period and the 200 ms age, at 30 m/s
     d.cycle(clear(d.tick), 1000)                               # braked to 10 m/s: one period at that speed
-    assert 3000 * U - d.state.track_near == first + travel(1000, 60)
+    assert 3000 * U - d.state.track_near == first + travel(1000, 60 + CLOSING_ACC)
 
 
 def test_the_remembered_obstacle_is_supervised_with_its_own_speed_plus_the_train_s():
     """An oncoming obstacle (reported closing at 5000 cm/s, the train at 3000: 2060 cm/s of
     its own) seen just beyond EBI (service), then every channel blind: its curves use the
-    closing speed 2060 + 2940 = 5000 again, and one cycle's prediction takes it inside EBI:
-    emergency on the remembered obstacle alone."""
+    closing speed 2060 + 2940 = 5000 again, and one cycle's prediction (with the closing
+    accuracy: 2160 cm/s of its own) takes it inside EBI: emergency on the remembered obstacle
+    alone."""
     cfg = Config()
     c = curves(cfg, V, 0, 0, 5000, 0)
     first = c.ebi_dm + 40
@@ -223,7 +239,7 @@ def test_the_remembered_obstacle_is_supervised_with_its_own_speed_plus_the_train
     out = d.cycle(present(d.tick, first, closing=5000), V)
     assert out.demand == SERVICE and d.state.track_closing == 2060
     out = d.clear(V)
-    t_dm = (first * U - travel(V, 2060)) // U
+    t_dm = (first * U - travel(V, 2060 + CLOSING_ACC)) // U
     assert out.track_dm == t_dm and t_dm <= c.ebi_dm
     assert out.demand == EMERGENCY and out.reasons & R_MEMORY
 
@@ -233,7 +249,7 @@ def test_a_blind_remembered_obstacle_inside_its_warning_curve_warns():
     SBI): no demand, but the warning."""
     cfg = Config()
     c = curves(cfg, V, 0, 0, V, 0)                 # 60 cm/s of its own + the train's 2940
-    first = c.warning_dm + 32                      # one cycle's prediction: 31.2 dm
+    first = c.warning_dm + 33                      # one cycle's prediction: 32.2 dm (closing accuracy included)
     d = normal_driver(cfg)
     out = d.cycle(present(d.tick, first, closing=V), V)
     assert not out.warning
@@ -251,7 +267,7 @@ def test_the_voted_obstacle_warns_even_when_the_nearer_remembered_one_does_not()
     remembered = curves(cfg, V, 0, 0, V, 0)
     voted = curves(cfg, V, 0, 0, V, 300)
     d = normal_driver(cfg)
-    d.cycle(present(d.tick, remembered.warning_dm + 33, closing=V), V)
+    d.cycle(present(d.tick, remembered.warning_dm + 34, closing=V), V)       # one cycle's prediction: 32.2 dm
     old = tuple(Report(PRESENT, voted.warning_dm, V, STATIC, d.tick - 300) for _ in range(6))
     out = d.cycle(with_channel(old, 5, Report(DEGRADED, 0, 0, STATIC, d.tick)), V)
     assert out.distance_dm == voted.warning_dm and out.track_dm == remembered.warning_dm + 1
@@ -295,10 +311,11 @@ def test_the_memory_defaults_are_the_documented_ones():
 FAR = 40000               # 4 km: beyond the table's zones (alpha1 + 1 km) and every curve at 30 m/s
 
 
-def keeper():
+def keeper(**kw):
     from tests.test_core_cycle import M1, maintain_only
 
-    return normal_driver(Config(distance_accuracy_dm=60000), maintain_only(M1))   # (its pictures jump)
+    # its pictures jump: a plausibility window shorter than the period compares no two reports
+    return normal_driver(Config(plausibility_ms=1, **kw), maintain_only(M1))
 
 
 def sees(d, distance: int, closing: int, stale: bool = False) -> tuple:
@@ -367,8 +384,10 @@ def test_an_error_s_emergency_is_not_kept_by_an_obstacle_beyond_the_zones():
 def test_what_was_raised_at_standstill_is_not_kept_once_moving():
     """An emergency raised at standstill for an oncoming obstacle inside EBI: keeping starts
     only while moving, so once the train rolls (1 cm/s) and the obstacle is beyond the
-    zones, the hold's confirmation runs."""
-    d = keeper()
+    zones, the hold's confirmation runs. (Seen there, 4 km away, it is another obstacle: the
+    oncoming one, still inside its curves, is forgotten on that evidence at once with
+    forget_ms 100, so that only the hold decides.)"""
+    d = keeper(forget_ms=100)
     at = ebi_dm(d.cfg, 0, 0, 0, 1000, 0)                 # the zone limit: inside the supervised EBI
     assert at <= curves(d.cfg, 0, 0, 0, 1000, 0).ebi_dm
     out = d.cycle(sees(d, at, 1000), 0)

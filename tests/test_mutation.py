@@ -136,8 +136,8 @@ def test_every_operator_is_generated_and_the_mutants_parse():
 # exact boundaries: the exact distance tolerance, exactly alpha2, 1 cm/s and standstill in
 # the hold (the latch before issue 29), the ABSENT -> PRESENT direction of a disagreement,
 # one module's flag, and the three modules' status when all but one see the obstacle
-C_SUBSET = ("fmu/c/core/rg_core.c:395:58:cmp:>=", "fmu/c/core/rg_core.c:654:21:cmp:<",
-            "fmu/c/core/rg_core.c:767:19:cmp:<", "fmu/c/core/rg_core.c:767:22:int:1",
+C_SUBSET = ("fmu/c/core/rg_core.c:395:58:cmp:>=", "fmu/c/core/rg_core.c:659:21:cmp:<",
+            "fmu/c/core/rg_core.c:772:19:cmp:<", "fmu/c/core/rg_core.c:772:22:int:1",
             "fmu/c/core/rg_core.c:385:16:cmp:!=", "fmu/c/core/rg_core.c:420:27:bool:&&",
             "fmu/c/core/rg_core.c:420:67:bool:&&")
 

@@ -249,6 +249,17 @@ def test_verify_physics_cli_proves_everything_and_catches_every_weakening(physic
         assert any("whole cycle (C)" in f for f in rows[name]["failed"]), rows[name]["failed"]
         assert rows[name]["replay"]["weakened"]["outcome"] == "collision", rows[name]["replay"]
         assert rows[name]["replay"]["shipped"]["outcome"] == "struck_at_standstill", rows[name]["replay"]
+    # issue 40 item 3: each term of the sensors' error budget left out fails the proof; the distance
+    # accuracy's replay (the sensors at the budget's corner) collides where the shipped monitor stands
+    for name in ("distance-accuracy-ignored", "closing-accuracy-ignored", "memory-accuracy-ignored",
+                 "passed-accuracy-ignored"):
+        assert rows[name]["caught"], rows[name]
+    assert replays["distance-accuracy-ignored"]["weakened"]["outcome"] == "collision", replays["distance-accuracy-ignored"]
+    assert replays["distance-accuracy-ignored"]["shipped"]["outcome"] != "collision"
+    for name in ("closing-accuracy-ignored", "memory-accuracy-ignored"):      # played, no collision: the note says
+        assert replays[name]["shipped"]["outcome"] != "collision", replays[name]
+    assert replays["passed-accuracy-ignored"] is None and "no playable point" in rows["passed-accuracy-ignored"]["replay_note"]
+    assert any("whole cycle (C)" in f for f in rows["passed-accuracy-ignored"]["failed"])
     whole = [c for c in obligations_run if "whole cycle" in c["name"]]
     assert len(whole) == 32 and all(c["passed"] for c in whole)          # the declaration in force
     assert {c["details"]["declaration"] for c in whole} == {"papers' train (shipped)"}
@@ -404,3 +415,21 @@ def test_the_steps_glued_in_one_theorem_prove_and_are_tight():
         assert obligations.refute(obligations.Lemmas(d, False, 1, 1).theorem(kind))[0] == "proved", kind
     greedy = obligations.Lemmas(replace(d, margin=d.margin + 1), False, 0, 0, curve_d=d)
     assert obligations.refute(greedy.theorem("static"))[0] == "refuted"
+
+
+def test_the_rolling_obstacle_figure_is_the_stop_time_s_and_breaks_on_the_line_s_gradient():
+    """The assumption that an obstacle keeps its speed, with the figure that breaks it
+    (issue 40 item 3): a static obstacle rolling towards the train at a closes a t^2 / 2 more
+    over the stop time t; the margin is gone at 2 margin / t^2. Worked by hand at 10 m/s (one
+    band, fresh report, normal conditions): t = 4 periods + cut-off + the rest of the build-up
+    + braking from v2 at 2.4 - g grad."""
+    d = Declaration.of(Config())
+    g = Fraction(981, 100) * Fraction(20, 1000)
+    v1 = Fraction(102, 10) + (Fraction(1, 2) + g) * Fraction(12, 10)
+    v2 = v1 + g * Fraction(2, 10)
+    t = Fraction(14, 10) + v2 / (Fraction(24, 10) - g)
+    stop, accel = model.rolling_limit(d, Fraction(10))
+    assert abs(stop - t) < Fraction(1, 10**9) and accel == 2 * d.margin / (stop * stop)
+    # a vehicle rolling free down the line's declared 20 per mille breaks it from 20 m/s on
+    assert model.rolling_limit(d, Fraction(10))[1] > g > model.rolling_limit(d, Fraction(20))[1]
+    assert any("rolling_limit" in a for a in model.ASSUMPTIONS)

@@ -4,8 +4,8 @@ outputs show, every one is supervised on its own curves, and a full memory merge
 farthest to the safe side of both. The rules on their own, then through the real cycle."""
 from __future__ import annotations
 
-from monitor.core.config import Config, forget_cycles
-from monitor.core.memory import UNITS_PER_DM
+from monitor.core.config import Config, forget_cycles, track_accel_mms2
+from monitor.core.memory import UNITS_PER_DM, near_travel
 from monitor.core.tracks import AHEAD, BEYOND, MEASURES, absorbed, assign, insert, merge, ordered, relation
 from monitor.core.types import (
     EMERGENCY, NO_TRACK, NO_TRACKS, PRESENT, R_MEMORY, STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD,
@@ -19,6 +19,13 @@ ACC = 500                                   # the default declared accuracy, dm:
 
 def held(near_dm: int, far_dm: int | None = None, closing: int = 0, strong: bool = True) -> Track:
     return Track(near_dm * U, (near_dm if far_dm is None else far_dm) * U, closing, 0, 0, strong)
+
+
+def creep(cfg: Config) -> int:
+    """What a remembered static obstacle comes nearer per period with the train at rest, in
+    1e-5 m: the train may accelerate from rest, and the obstacle may close at the declared
+    closing accuracy (the error budget: 1 dm per cycle at the defaults)."""
+    return near_travel(0, cfg.speed_error_permille, track_accel_mms2(cfg), cfg.closing_accuracy_cms, cfg.period_ms)
 
 
 def one_module(tick: int, distance: int, module: int = 0) -> tuple:
@@ -66,20 +73,22 @@ def test_a_confirmed_sighting_beyond_the_track_is_remembered_at_once_and_outlive
     second track from its first sighting; A's forgetting reports B as the track."""
     cfg = Config()
     n = forget_cycles(cfg)
+    step = creep(cfg)
     d = normal_driver(cfg, M2)
     d.present(3000)                                                     # A, 300 m, inside the declared range
     d.clear()                                                           # (drops plausibility's references)
     out = d.present(12000)                                              # B, 1.2 km: beyond A
-    assert out.track_state == TRACK_CONFIRMING and out.track_dm >= 2998               # (creeping from rest)
-    assert d.state.tracks[1].near // U == 11999
+    assert out.track_state == TRACK_CONFIRMING and out.track_dm == (3000 * U - 2 * step) // U   # (creeping)
+    assert d.state.tracks[1].near == 12000 * U - step
     for _ in range(n - 3):
         out = d.clear()                                                 # blind: evidence for A (in range) only
     assert out.track_state == TRACK_CONFIRMING
     out = d.clear()
-    assert out.track_state == TRACK_FORGOTTEN and 11990 <= out.track_dm < 12000
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == (12000 * U - (n - 2) * step) // U
     for _ in range(3 * n):                                              # B beyond range: held however long
         out = d.clear()
-    assert out.track_state == TRACK_HELD and 11900 <= out.track_dm < 12000 and out.reasons & R_MEMORY
+    assert out.track_state == TRACK_HELD and out.track_dm == (12000 * U - (4 * n - 2) * step) // U
+    assert out.reasons & R_MEMORY
 
 
 def test_a_confirmed_sighting_ahead_of_the_track_keeps_the_track():
@@ -87,15 +96,17 @@ def test_a_confirmed_sighting_ahead_of_the_track_keeps_the_track():
     it leaves (ABSENT inside the range: evidence for both) the farther one beyond the range
     is still remembered."""
     cfg = Config()
+    n = forget_cycles(cfg)
+    step = creep(cfg)
     d = normal_driver(cfg, M2)
     d.present(20000)                                                    # A, 2 km: beyond the declared range
     d.clear()
     out = d.present(3000)                                               # C, 300 m
     assert out.track_state == TRACK_SEEN and out.track_dm == 3000 and out.track_cycles == 0
-    assert 19998 <= d.state.tracks[1].near // U < 20000
-    for _ in range(forget_cycles(cfg)):
+    assert d.state.tracks[1].near == 20000 * U - 3 * step
+    for _ in range(n):
         out = d.clear()
-    assert out.track_state == TRACK_FORGOTTEN and 19900 <= out.track_dm < 20000
+    assert out.track_state == TRACK_FORGOTTEN and out.track_dm == (20000 * U - (n + 2) * step) // U
 
 
 def test_every_remembered_obstacle_is_supervised_on_its_own_curves():
@@ -121,22 +132,26 @@ def test_every_remembered_obstacle_is_supervised_on_its_own_curves():
 def test_a_single_module_sighting_beyond_the_track_is_remembered_beside_it():
     """Issue 38 item 1 with a track already held: a farther obstacle that one module sees with
     both channels used to be dropped (it never moves the track); it is a weak track of its own."""
-    d = normal_driver(Config(), M2)
+    cfg = Config()
+    step = creep(cfg)
+    d = normal_driver(cfg, M2)
     d.present(3000)
     d.clear()
     out = d.cycle(one_module(d.tick, 15000), 0)
-    assert out.system_error and out.track_dm == 2999                   # (creeping: may accelerate from rest)
+    assert out.system_error and out.track_dm == (3000 * U - 2 * step) // U
     near = [t.near for t in d.state.tracks]
-    assert near[1] // U == 14999 and not d.state.tracks[1].strong and near[2] == NO_TRACK
+    assert near[1] == 15000 * U - step and not d.state.tracks[1].strong and near[2] == NO_TRACK
 
 
 def test_four_obstacles_fill_three_tracks_and_the_farthest_two_become_one():
-    d = normal_driver(Config(), M2)
+    cfg = Config()
+    step = creep(cfg)
+    d = normal_driver(cfg, M2)
     for dist in (3000, 8000, 15000, 25000):
         d.cycle(one_module(d.tick, dist), 0)
         d.clear()                                                       # (drops plausibility's references)
     tracks = d.state.tracks
-    assert [t.near // U for t in tracks] == [2999, 7999, 14999]                 # (creeping from rest)
+    assert [t.near for t in tracks] == [3000 * U - 8 * step, 8000 * U - 6 * step, 15000 * U - 4 * step]
     assert tracks[2].far >= 24999 * U and all(t.near != NO_TRACK for t in tracks)
 
 
@@ -187,7 +202,8 @@ def test_a_near_confirmed_obstacle_is_no_evidence_against_a_farther_track():
     d = two_tracks(cfg, 1500, 3500)
     for _ in range(2 * forget_cycles(cfg)):
         out = d.present(1500)
-    assert out.track_dm == 1500 and d.state.tracks[1].near // U >= 3490 and d.state.tracks[1].absent == 0
+    assert out.track_dm == 1500 and d.state.tracks[1].absent == 0
+    assert d.state.tracks[1].near == 3500 * U - (2 * forget_cycles(cfg) + 3) * creep(cfg)   # (creeping: held)
 
 
 def test_a_disputed_sighting_beyond_a_track_is_no_evidence_against_it():
@@ -199,7 +215,8 @@ def test_a_disputed_sighting_beyond_a_track_is_no_evidence_against_it():
     d.clear()
     for _ in range(2 * forget_cycles(cfg)):
         out = d.cycle(one_module(d.tick, 3500), 0)
-    assert out.track_state == TRACK_HELD and d.state.tracks[0].absent == 0 and out.track_dm >= 1490
+    assert out.track_state == TRACK_HELD and d.state.tracks[0].absent == 0
+    assert out.track_dm == (1500 * U - (2 * forget_cycles(cfg) + 1) * creep(cfg)) // U      # (creeping: held)
 
 
 def test_one_module_seeing_a_track_between_its_two_positions_moves_it_one_channel_does_not():
@@ -265,7 +282,8 @@ def test_the_memory_reason_and_the_risk_read_every_remembered_track():
 
 def test_a_merged_track_is_moved_from_the_age_of_the_sighting_that_made_it_nearest():
     """Three tracks held, a fourth sighting with a report 200 ms old between the two farthest:
-    merged with the farthest at the sighting's position, moved by the period and that age."""
+    merged with the farthest at the sighting's position, moved by the period and that age (its
+    closing speed plus the declared closing accuracy: the error budget)."""
     cfg = Config()
     v = 1000
     d = normal_driver(cfg, M2)
@@ -277,9 +295,8 @@ def test_a_merged_track_is_moved_from_the_age_of_the_sighting_that_made_it_neare
     d.cycle(tuple(reports), v)
     merged = d.state.tracks[2]
     own = v - v * (1000 - cfg.speed_error_permille) // 1000
-    from monitor.core.config import track_accel_mms2
-    from monitor.core.memory import near_travel
-    assert merged.near == 12000 * U - near_travel(v, cfg.speed_error_permille, track_accel_mms2(cfg), own, 300)
+    assert merged.near == 12000 * U - near_travel(v, cfg.speed_error_permille, track_accel_mms2(cfg),
+                                                  own + cfg.closing_accuracy_cms, 300)
 
 
 def test_the_risk_reads_a_nearer_voted_obstacle_before_a_farther_remembered_one():

@@ -56,7 +56,8 @@ def test_phantoms_stop_the_train_only_when_the_emergency_is_held():
     assert revocable.metrics["false_onsets"] > 50
     # stops with no obstacle on the line (phantoms); since issue 12 the table also stops for
     # real obstacles that stay reported, which is not what this is about
-    assert seed000.stops_per_hour(held, "stops_no_obstacle") > 4 * max(1.0, seed000.stops_per_hour(revocable, "stops_no_obstacle"))
+    # (4 x before the sensors' error budget lengthened the curves: 75 against 24 since, issue 40 item 3)
+    assert seed000.stops_per_hour(held, "stops_no_obstacle") > 2.5 * max(1.0, seed000.stops_per_hour(revocable, "stops_no_obstacle"))
     assert held.metrics["stops"] >= held.metrics["stops_no_obstacle"] > 0
 
 
@@ -90,10 +91,11 @@ def test_without_phantoms_braking_seldom_starts_without_an_obstacle(small_run):
     """Before the obstacle memory braking never started without an obstacle here; now an
     obstacle that has just left the track can still be braked for (remembered until forget_ms
     of confirmed absence, or kept while the hold's confirmation runs): 4 of 17 onsets in this
-    run (2 of 15 with forget_ms = 100). Issue 29's finding, left for its own work: which of
-    them the release rule could avoid."""
+    run (2 of 15 with forget_ms = 100), 5 of 18 since the sensors' error budget lengthened the
+    curves and moves the memory faster (issue 40 item 3). Issue 29's finding, left for its own
+    work: which of them the release rule could avoid."""
     assert small_run.metrics["onsets"] > 0
-    assert small_run.metrics["onsets_no_obstacle"] <= small_run.metrics["onsets"] // 4
+    assert small_run.metrics["onsets_no_obstacle"] <= small_run.metrics["onsets"] // 3
     assert small_run.metrics["collisions"] == 0
 
 
@@ -131,10 +133,11 @@ def test_train_seconds_are_counted():
 def test_zones_and_obstacle_window():
     a1, a2 = SHIPPED.alphas_at_line_speed_m()
     # the core's zones under normal conditions at 40 m/s, a static obstacle: alpha2 = EBI, alpha1 = the service
-    # EBI, as zone limits (one period, not the supervision's four: its EBI is 492.9 m)
+    # EBI, as zone limits (one period and no sensor error budget, not the supervision's four periods
+    # and 50 m + 1 m/s: its EBI is 563.8 m)
     assert (a1, a2) == (ebi_dm(Config(), 4000, 0, 0, 4000, 0, service=True) / 10,
                         ebi_dm(Config(), 4000, 0, 0, 4000, 0) / 10) == (1588.8, 475.8)
-    assert curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm == 4929     # 4 periods (481.5 m counting 2)
+    assert curves(Config(), 4000, 0, 0, 4000, 0).ebi_dm == 5638     # 492.9 m without the budget, 481.5 m with 2 periods
     lo, hi = SHIPPED.appear_window_m()
     assert math.isclose(lo, 1032.3) and math.isclose(hi, 1082.3)
     assert PAPER.alphas_at_line_speed_m() == (300.0, 100.0)   # one cycle (4 m) + v^2/2a with 8.334 / 2.703 m/s^2

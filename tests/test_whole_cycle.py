@@ -42,7 +42,10 @@ def test_the_remembered_curve_rounding_the_train_s_share_down_is_refuted(setup, 
     assert planted != CYCLE_PY.read_text()
     results = wc.prove_case(Config(), setup, wc.python_step({"cycle": planted}), BLIND, "Python")
     assert _statuses(results) == ["proved", "refuted"]
-    assert 0 < results[1].model["obstacle_cms"] < 1                 # less than 1 cm/s uncounted
+    m, faster = results[1].model, Config().closing_accuracy_cms
+    # less than 1 cm/s uncounted: the obstacle within the remembered own speed plus the closing
+    # accuracy (the error budget), and faster than the curve counts
+    assert -1 < m["obstacle_cms"] - m["remembered_own_cms"] - faster <= 0
     w = weakenings.Weakening("rounded-down", "", (), (("tracks[i].closing + own_speed_up, ages[i]",
                                                        "tracks[i].closing + own_speed, ages[i]"),))
     core = weakenings.weakened_core(w, tmp_path / "core")

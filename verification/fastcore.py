@@ -97,16 +97,18 @@ def obstacle_run_dm(obstacle_cms, time_ms) -> np.ndarray:
 
 
 def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: bool = False,
-           periods: int = SUPERVISED_PERIODS) -> Curves:
-    """monitor.core.braking.curves on int64 arrays (one element per train); `periods`
-    ZONE_PERIODS gives braking.ebi_dm's zone limits."""
+           supervised: bool = True) -> Curves:
+    """monitor.core.braking.curves on int64 arrays (one element per train), with the sensors'
+    error budget; `supervised=False` gives braking.ebi_dm's zone limits (ZONE_PERIODS, no budget)."""
+    periods = SUPERVISED_PERIODS if supervised else ZONE_PERIODS
+    near_dm = cfg.distance_accuracy_dm if supervised else 0
     v = np.asarray(speed_cms, dtype=I64)
     track, brake = np.asarray(track, dtype=I64), np.asarray(brake, dtype=I64)
     closing, age = np.asarray(closing_cms, dtype=I64), np.asarray(age_ms, dtype=I64)
     e = cfg.speed_error_permille
     v_max = _ceil_div(v * (1000 + e), 1000)
     v_min = v * (1000 - e) // 1000
-    obstacle = closing - v_min
+    obstacle = closing + (cfg.closing_accuracy_cms if supervised else 0) - v_min
     g = gradient_accel_mms2(cfg.max_gradient_permille)
     raw = ((0, cfg.service_decel_mms2),) if service else emergency_bands(cfg)
     buildup = cfg.service_buildup_ms if service else cfg.emergency_buildup_ms
@@ -117,9 +119,9 @@ def curves(cfg: Config, speed_cms, track, brake, closing_cms, age_ms, service: b
     t2 = max(buildup - cfg.traction_cutoff_ms, 0)
     s2, v2 = run_dm(v1, g, t2), speed_after_cms(v1, g, t2)
     s3, t3 = _stop(v2, bands)
-    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle, t1 + t2 + t3)
+    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + near_dm + obstacle_run_dm(obstacle, t1 + t2 + t3)
     ebd_dist, ebd_time = _stop(v, bands)
-    ebd = ebd_dist + cfg.standstill_margin_dm + obstacle_run_dm(obstacle, ebd_time)
+    ebd = ebd_dist + cfg.standstill_margin_dm + near_dm + obstacle_run_dm(obstacle, ebd_time)
     lead = v_max + np.maximum(obstacle, 0)
     sbi = ebi + run_dm(lead, 0, cfg.service_buildup_ms)
     warning = sbi + run_dm(lead, 0, cfg.warning_ms)
@@ -142,8 +144,8 @@ def zone_alphas(cfg: Config, speed_cms, closing_cms, age_ms) -> tuple[np.ndarray
     conditions, alpha1 = the service curve's EBI under normal conditions, at least alpha2,
     both as zone limits (ZONE_PERIODS: without the supervision's sampling period)."""
     zero = np.zeros_like(np.asarray(speed_cms, dtype=I64))
-    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, periods=ZONE_PERIODS).ebi_dm
-    alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True, periods=ZONE_PERIODS).ebi_dm
+    alpha2 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, supervised=False).ebi_dm
+    alpha1 = curves(cfg, speed_cms, zero, zero, closing_cms, age_ms, service=True, supervised=False).ebi_dm
     return np.maximum(alpha1, alpha2), alpha2
 
 

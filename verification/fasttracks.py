@@ -145,9 +145,10 @@ class TrackMemory:
         # the others (not measured, not absorbed): the train's least travel, evidence, forget
         other = occ & ~is_slot & ~gone
         far = F - far_travel(speed, cfg.speed_error_permille, self.setup.track_accel, cfg.period_ms)
-        passed = other & (far < 0)
+        reach = far + cfg.distance_accuracy_dm * UNITS_PER_DM    # the farthest the obstacle can lie
+        passed = other & (reach < 0)
         evidence = (other & ~passed & ((confirmed & beyond) | ~(present | stale))
-                    & (far <= cfg.sensor_range_dm * UNITS_PER_DM))
+                    & (reach <= cfg.sensor_range_dm * UNITS_PER_DM))
         count = A + 1
         single = self.setup.forget_single
         forgotten = evidence & (count >= single + (self.setup.forget_cycles - single) * S)   # (strong: 0 or 1)
@@ -199,7 +200,7 @@ class TrackMemory:
         nearest first again."""
         cfg = self.setup.config
         near = self.slots[0]
-        moved = near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel, self.slots[2],
-                                   cfg.period_ms + ages)
+        moved = near - near_travel(speed, cfg.speed_error_permille, self.setup.track_accel,
+                                   self.slots[2] + cfg.closing_accuracy_cms, cfg.period_ms + ages)
         self.slots[0] = np.where(near != NO_TRACK, np.maximum(moved, 0), NO_TRACK)
         _ordered(self.slots)

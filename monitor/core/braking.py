@@ -7,9 +7,11 @@ down), so the sum is never shorter than the exact value.
 
 * EBD: the guaranteed emergency deceleration (speed bands, adhesion factors, downhill
   gradient) stops the train `standstill_margin_dm` before the obstacle.
-* EBI: EBD moved for the speed error, the report's age, two monitor periods (the sampling:
-  the first cycle inside EBI can come one period after the last one outside it; and the
-  demand's way to the brakes), traction until
+* The error budget (every supervised curve): the obstacle may be `distance_accuracy_dm`
+  nearer than reported and close `closing_accuracy_cms` faster than measured.
+* EBI: EBD moved for the speed error, the report's age, four monitor periods (a stalled
+  monitor's: its last demand's way to the brakes and their receiver's timeout; see
+  SUPERVISED_PERIODS), traction until
   it is cut (accelerating at `max_accel` plus the gradient) and the brake's equivalent
   build-up time (coasting downhill). An oncoming obstacle keeps closing at its own speed
   until the train stands.
@@ -177,12 +179,20 @@ def curves(cfg: Config, speed_cms: int, track: int, brake: int, closing_cms: int
     brake conditions, the obstacle's closing speed (`closing_cms`; none: pass the train's
     speed) and the age of the report the distance came from.
 
+    Every curve counts the sensors' declared accuracy (the error budget, docs/supervision.md
+    2.6); the zone limits (`ebi_dm`) do not: they place the table's observation, and the
+    supervised curves are the floor under whatever the table decides.
+
     With `service`, the same construction for the service brake (its guaranteed
     deceleration and build-up); the table's alpha1 is its zone limit, `ebi_dm(..., service=True)`."""
-    ebi, v_max, obstacle_cms, bands = _intervention(cfg, speed_cms, track, brake, closing_cms, age_ms, service,
+    # the error budget: the obstacle may be `distance_accuracy_dm` nearer than reported and
+    # close `closing_accuracy_cms` faster than measured (the sensors' declared accuracy)
+    ebi, v_max, obstacle_cms, bands = _intervention(cfg, speed_cms, track, brake,
+                                                    closing_cms + cfg.closing_accuracy_cms, age_ms, service,
                                                     SUPERVISED_PERIODS)
+    ebi += cfg.distance_accuracy_dm
     ebd_dist, ebd_time = stop_dm_ms(speed_cms, bands)
-    ebd = ebd_dist + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, ebd_time)
+    ebd = ebd_dist + cfg.standstill_margin_dm + cfg.distance_accuracy_dm + obstacle_run_dm(obstacle_cms, ebd_time)
     lead_cms = v_max + (obstacle_cms if obstacle_cms > 0 else 0)
     sbi = ebi + run_dm(lead_cms, 0, cfg.service_buildup_ms)
     warning = sbi + run_dm(lead_cms, 0, cfg.warning_ms)

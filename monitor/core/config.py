@@ -57,7 +57,8 @@ class Config(NamedTuple):
     forget_ms: int = 7500              # fresh unanimous ABSENT this long forgets a remembered obstacle (the trade-off: docs/supervision.md 5)
     sensor_range_dm: int = 4000        # the sensors' declared range: absence counts as evidence only inside it
     forget_single_ms: int = 1000       # the same for an obstacle only one module ever saw (issue 38: its ghosts)
-    # --- the sensors' declared accuracy: plausibility of a channel's reports (monitor/core/plausibility.py)
+    # --- the sensors' declared accuracy (guaranteed): counted by the supervised curves and the
+    #     memory (the error budget, docs/supervision.md 2.6) and by plausibility (plausibility.py)
     distance_accuracy_dm: int = 500    # a reported distance is within this of the truth (5 sigma of the papers' 10 m noise)
     closing_accuracy_cms: int = 100    # a reported closing speed is within this of the truth
     plausibility_ms: int = 30000       # an implausible channel is believed again after this long of plausible reports
@@ -74,7 +75,8 @@ class Config(NamedTuple):
 DECLARATION_FIELDS = ("emergency_decel_mms2", "emergency_band2_cms", "emergency_band2_mms2", "emergency_band3_cms",
                       "emergency_band3_mms2", "service_decel_mms2", "emergency_buildup_ms", "service_buildup_ms",
                       "traction_cutoff_ms", "max_accel_mms2", "speed_error_permille", "slippery_permille",
-                      "degraded_permille", "max_gradient_permille", "standstill_margin_dm")
+                      "degraded_permille", "max_gradient_permille", "standstill_margin_dm", "distance_accuracy_dm",
+                      "closing_accuracy_cms")
 
 
 def check(cfg: Config) -> None:

@@ -229,8 +229,11 @@ def _step(setup: Setup, state: State, inputs: Inputs, tick: int) -> tuple[State,
         else:                                         # not seen: evidence, or held
             far = t.far - far_travel(speed if train_ok else 0, err, setup.track_accel, cfg.period_ms)
             beyond = confirmed and seen_beyond(t.near, t.far, distance, cfg.distance_accuracy_dm)
+            # the farthest the obstacle can lie: a distance accuracy beyond where it was reported
+            # (the error budget); passed, and inside the sensors' range, only counting that
+            reach = far + cfg.distance_accuracy_dm * UNITS_PER_DM
             absent, states[i] = forget(t.absent, (beyond or evidence_absent) and not stale,
-                                       far <= cfg.sensor_range_dm * UNITS_PER_DM, far < 0,
+                                       reach <= cfg.sensor_range_dm * UNITS_PER_DM, reach < 0,
                                        setup.forget_cycles if t.strong else setup.forget_single)
             lost = states[i] == TRACK_FORGOTTEN or states[i] == TRACK_PASSED
             tracks[i] = Track() if lost else Track(t.near, far, t.closing, _inc(t.cycles), absent, t.strong)
@@ -383,8 +386,9 @@ def moved_tracks(setup: Setup, tracks: list, ages: list, states: list, speed: in
     out = list(tracks)
     for i, t in enumerate(out):
         if t.near != NO_TRACK:
-            moved = t.near - near_travel(speed, cfg.speed_error_permille, setup.track_accel, t.closing,
-                                         cfg.period_ms + ages[i])
+            # the closing speed as measured plus the sensors' accuracy (the error budget)
+            moved = t.near - near_travel(speed, cfg.speed_error_permille, setup.track_accel,
+                                         t.closing + cfg.closing_accuracy_cms, cfg.period_ms + ages[i])
             out[i] = t._replace(near=moved if moved > 0 else 0)
     return ordered(out, list(ages), list(states))[0]
 

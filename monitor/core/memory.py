@@ -3,7 +3,10 @@
 A voted obstacle is kept as a track and predicted forward every cycle, worst case for
 the train: a static obstacle stays where it was, a receding one is taken to stop at once, an
 oncoming one keeps closing at its last speed, and the train runs at its measured speed plus
-the speed error, accelerating under traction and downhill. The report's age is counted once, at
+the speed error, accelerating under traction and downhill. The sensors' declared accuracy is
+counted where the step uses a track (cycle.py, the error budget): a track moves at its own
+speed plus the closing accuracy, and counts as passed or inside the sensors' range with the
+distance accuracy added to its farthest position. The report's age is counted once, at
 the end of the cycle that saw it, at that cycle's speed: the remembered curves count no age (a
 train that has braked since would otherwise count the age's travel at a lower speed than the
 one it ran at; issue 30 item 4). The curves supervise the voted and every
@@ -51,7 +54,7 @@ def near_travel(speed_cms: int, error_permille: int, accel_mms2: int, obstacle_c
     own speed (0 if not oncoming).
 
     pre: 0 <= speed_cms <= 12000 and 0 <= error_permille <= 500 and 0 <= accel_mms2 <= 10000
-    pre: 0 <= obstacle_cms <= 15000 and 1 <= period_ms <= 70000
+    pre: 0 <= obstacle_cms <= 30000 and 1 <= period_ms <= 70000
     post: __return__ * 1000 >= speed_cms * (1000 + error_permille) * period_ms + obstacle_cms * period_ms * 1000
     post: __return__ >= speed_cms * period_ms + obstacle_cms * period_ms
     """
@@ -126,7 +129,7 @@ def seen_beyond(near: int, far: int, distance_dm: int, accuracy_dm: int) -> bool
     something seen beyond the remembered position says nothing is there: it counts as ABSENT
     does (`forget`), and becomes the track once the old one is forgotten, never at once.
 
-    pre: near >= -1 and far >= -1 and 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
+    pre: near >= -1 and far >= -600000000 and 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
     post: not __return__ or (near != -1 and distance_dm * 10000 > far)
     post: __return__ or near == -1 or distance_dm * 10000 <= far + 2 * accuracy_dm * 10000
     """

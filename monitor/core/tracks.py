@@ -38,7 +38,7 @@ MEASURES, AHEAD, BEYOND = 0, 1, 2
 def relation(near: int, far: int, distance_dm: int, accuracy_dm: int) -> int:
     """Where a sighting lies against a held track: MEASURES, AHEAD or BEYOND (module doc).
 
-    pre: 0 <= near and 0 <= far and 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
+    pre: 0 <= near and -600000000 <= far and 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
     post: (__return__ == 2) == seen_beyond(near, far, distance_dm, accuracy_dm)
     post: __return__ != 1 or distance_dm * 10000 < near - 2 * accuracy_dm * 10000
     post: __return__ != 0 or near - 2 * accuracy_dm * 10000 <= distance_dm * 10000 <= far + 2 * accuracy_dm * 10000
@@ -57,7 +57,7 @@ def assign(tracks: tuple[Track, ...], distance_dm: int, accuracy_dm: int, create
     (a disputed picture no module confirms) only brings the nearest track nearer, as
     `memory.observe` does with a single track. `tracks` are ordered, nearest first.
 
-    pre: len(tracks) == 3 and all(t.near == -1 or (t.near >= 0 and t.far >= 0) for t in tracks)
+    pre: len(tracks) == 3 and all(t.near == -1 or (t.near >= 0 and t.far >= -600000000) for t in tracks)
     pre: 0 <= distance_dm <= 60000 and 0 <= accuracy_dm <= 60000
     post: not (__return__[0] >= 0 and __return__[1]) and (creates or not __return__[1])
     post: __return__[0] == -1 or tracks[__return__[0]].near != -1

@@ -87,7 +87,7 @@ class Track(NamedTuple):
     """One remembered obstacle (memory.py), positions in 1e-5 m (cm/s x ms)."""
 
     near: int = NO_TRACK  # worst case (nearest) position; NO_TRACK: the slot is empty
-    far: int = NO_TRACK   # the remembered position less the train's least travel (< 0: passed)
+    far: int = NO_TRACK   # the remembered position less the train's least travel (passed: below minus the distance accuracy)
     closing: int = 0      # its own speed towards the train, cm/s (>= 0)
     cycles: int = 0       # cycles since it was last voted
     absent: int = 0       # cycles in a row of positive evidence that it is gone

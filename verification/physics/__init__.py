@@ -96,7 +96,9 @@ def weakening_run(job: tuple) -> dict:
     row = {"weakening": w.name, "what": w.what, "caught": bool(failed) and bool(failed_c),
            "failed": [r.name for r in failed + failed_c], "replay": None}
     if w.memory:
-        if replay_all:
+        if w.no_replay:
+            row["replay_note"] = w.no_replay
+        elif replay_all:
             row["replay"] = memory_replay(w, cfg, core, folder)
         row["seconds"] = time.perf_counter() - t0
         return row

@@ -58,13 +58,13 @@ ENTRY_POINTS = """
 void rg_verify_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
                       int32_t age_ms, int32_t service, rg_curve_set *out)
 {
-    rg_curves(cfg, speed_cms, track, brake, closing_cms, age_ms, service, RG_SUPERVISED_PERIODS, out);
+    rg_curves(cfg, speed_cms, track, brake, closing_cms, age_ms, service, 1, out);
 }
 
 void rg_verify_zone(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
                     int32_t age_ms, int32_t service, rg_curve_set *out)
 {
-    rg_curves(cfg, speed_cms, track, brake, closing_cms, age_ms, service, RG_ZONE_PERIODS, out);
+    rg_curves(cfg, speed_cms, track, brake, closing_cms, age_ms, service, 0, out);
 }
 """
 

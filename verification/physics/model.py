@@ -5,10 +5,8 @@ when the obstacle's distance `D` was measured (the report's age before the monit
 Each phase is a differential equation with bounded inputs, as in the train FMU
 (fmu/c/train/model.c) and its Python twin (verification/world_train.py):
 
-1. **reaction**, for `t1 = age + 2 period + traction_cutoff` (the report's age; the sampling
-   period: the first cycle that finds the train inside EBI may come one period after the last
-   that found it outside; the demand's period on its way to the brakes; traction until it is
-   cut): x' = v, v' = acc with
+1. **reaction**, for `t1 = age + CONTRACT_PERIODS x period + traction_cutoff` (the report's
+   age; the monitor's timing contract below; traction until it is cut): x' = v, v' = acc with
    acc <= max_accel + g grad (full traction and the downhill pull) and v >= 0;
 2. **build-up**, for `t2 = max(0, buildup - traction_cutoff)` (the declared *equivalent*
    build-up: dead time plus half the ramp, which covers a linear ramp; docs/supervision.md 2.4):
@@ -20,7 +18,9 @@ Each phase is a differential equation with bounded inputs, as in the train FMU
    stop at once; oncoming: > 0) until the train stands.
 
 Every declared bound is a variable inside its bound, not a constant: the true speed anywhere
-within the speed error of the measured one (v (1 - e) <= v0 <= v (1 + e)), any gradient from
+within the speed error of the measured one (v (1 - e) <= v0 <= v (1 + e)), the true distance
+and closing speed anywhere within the sensors' declared accuracy of the reported ones (the
+error budget: |D - D_reported| <= distance_accuracy, |v0 + w0 - c| <= closing_accuracy), any gradient from
 60 per mille uphill down to the steepest downhill, any deceleration at or above the guaranteed
 one, any report age up to `timeout_cycles x period`, any closing speed the core accepts. What
 the model assumes (and the proofs with it) is listed in `ASSUMPTIONS`.
@@ -63,9 +63,14 @@ CONTRACT_PERIODS = max(2, 1 + RECEIVER_TIMEOUT_PERIODS)    # running: sampling +
 CONTRACT_ZONE_PERIODS = 1     # the demand's way to the brakes
 
 ASSUMPTIONS = (
-    "the reported distance is the true distance when the report was measured (sensor distance error is not declared)",
-    "the measured closing speed is the train's true speed plus the obstacle's own speed towards it",
-    "an obstacle keeps a constant speed (a receding one may stop at once; an oncoming one does not speed up)",
+    "the reported distance is within `distance_accuracy` of the true distance when the report was measured, and "
+    "the measured closing speed within `closing_accuracy` of the train's true speed plus the obstacle's own speed "
+    "towards it (the sensors' declared accuracy: the error budget; a zone limit is proved for exact sensors, the "
+    "supervised curves for every error inside the budget)",
+    "an obstacle keeps a constant speed after the last reading (a receding one may stop at once; an oncoming one "
+    "does not speed up); the figure that breaks it (`rolling_limit`): a static obstacle that starts rolling towards "
+    "the train at 2 margin / t^2, t the stop time, uses the margin up (papers' train: 0.24 m/s^2 at 10 m/s, "
+    "0.023 m/s^2 at 40 m/s; a vehicle rolling free on the line's 20 per mille gains up to 0.196 m/s^2)",
     "a demand reaches the brakes within one monitor period (`period_ms`), as measured on CAN",
     "during a report's age the train ran no faster than the speed error allows around the speed the cycle "
     "measures, accelerating at most at traction plus the steepest downhill (the age is at most "
@@ -104,6 +109,8 @@ class Declaration:
     period: Fraction
     warning: Fraction
     max_age: Fraction              # s: timeout_cycles x period
+    distance_accuracy: Fraction    # m: a reported distance is within this of the true one (the error budget)
+    closing_accuracy: Fraction     # m/s: a measured closing speed is within this of the true one
 
     @classmethod
     def of(cls, cfg: Config) -> "Declaration":
@@ -112,7 +119,8 @@ class Declaration:
                    ms(cfg.emergency_buildup_ms), ms(cfg.service_buildup_ms), ms(cfg.traction_cutoff_ms),
                    ms(cfg.max_accel_mms2), ms(cfg.speed_error_permille), ms(cfg.slippery_permille),
                    ms(cfg.degraded_permille), ms(cfg.max_gradient_permille), Fraction(cfg.standstill_margin_dm, 10),
-                   ms(cfg.period_ms), ms(cfg.warning_ms), ms(cfg.timeout_cycles * cfg.period_ms))
+                   ms(cfg.period_ms), ms(cfg.warning_ms), ms(cfg.timeout_cycles * cfg.period_ms),
+                   Fraction(cfg.distance_accuracy_dm, 10), Fraction(cfg.closing_accuracy_cms, 100))
 
     def brake(self, service: bool) -> tuple:
         """((from m/s, declared decel), ...) of the emergency or the service brake."""
@@ -123,6 +131,11 @@ class Declaration:
 
     def buildup(self, service: bool) -> Fraction:
         return self.service_buildup if service else self.emergency_buildup
+
+    def budget(self, counted: bool) -> tuple:
+        """(distance m, closing m/s) of the sensors' error a curve counts: the declared accuracy
+        for a supervised curve, none for a zone limit (proved for exact sensors)."""
+        return (self.distance_accuracy, self.closing_accuracy) if counted else (Fraction(0), Fraction(0))
 
 
 def pos(x):
@@ -161,15 +174,18 @@ class RealCurves:
 
 
 def real_curves(d: Declaration, v, c, age, track: int, brake: int, service: bool = False,
-                periods: int = CONTRACT_PERIODS) -> RealCurves:
+                periods: int = CONTRACT_PERIODS, budget: bool = True) -> RealCurves:
     """The curves of docs/supervision.md section 2 in exact real arithmetic, in m, at measured
     speed v (m/s), closing speed c (m/s) and report age (s): the yardstick for the integer code.
-    `periods` in the reaction: the supervision's two (the sampling and the demand's) or a zone
-    limit's one (CONTRACT_ZONE_PERIODS): the monitor's timing contract, not the code's constants."""
+    `periods` in the reaction: the supervision's (CONTRACT_PERIODS) or a zone limit's one
+    (CONTRACT_ZONE_PERIODS): the monitor's timing contract, not the code's constants. `budget`:
+    the sensors' error counted (the obstacle up to `distance_accuracy` nearer than reported, and
+    closing up to `closing_accuracy` faster than measured); a zone limit counts none."""
     gg = q(G * d.max_gradient)
     e = q(d.speed_error)
+    near, faster = d.budget(budget)
     v_max, v_min = v * (1 + e), v * (1 - e)
-    w = pos(c - v_min)
+    w = pos(c + q(faster) - v_min)
     decels = [q(a * d.factor(track, brake)) - gg for _, a in d.brake(service)]
     bands = d.brake(service)
     t1 = age + q(periods * d.period + d.traction_cutoff)
@@ -178,9 +194,9 @@ def real_curves(d: Declaration, v, c, age, track: int, brake: int, service: bool
     t2 = q(max(Fraction(0), d.buildup(service) - d.traction_cutoff))
     s2, v2 = v1 * t2 + gg * t2 * t2 / 2, v1 + gg * t2
     s3, t3 = band_sums(bands, decels, v2)
-    ebi = s1 + s2 + s3 + q(d.margin) + w * (t1 + t2 + t3)
+    ebi = s1 + s2 + s3 + q(d.margin) + q(near) + w * (t1 + t2 + t3)
     ebd_s, ebd_t = band_sums(bands, decels, v)
-    ebd = ebd_s + q(d.margin) + w * ebd_t
+    ebd = ebd_s + q(d.margin) + q(near) + w * ebd_t
     lead = v_max + w
     sbi = ebi + lead * q(d.service_buildup)
     return RealCurves(ebd, ebi, sbi, sbi + lead * q(d.warning),
@@ -257,3 +273,17 @@ def invariant_obligation(inv: Invariant):
     start = z3.substitute(inv.p, *[(c.arg(0), c.arg(1)) for c in inv.start])
     # refute: start value negative, or derivative negative where the constraint holds
     return z3.Or(start < 0, z3.And(*inv.constraint, deriv < 0), third != 0)
+
+
+def rolling_limit(d: Declaration, speed: Fraction) -> tuple[Fraction, Fraction]:
+    """(stop time s, obstacle acceleration m/s^2): the figure that breaks the assumption that an
+    obstacle keeps its speed (issue 40 item 3). A static obstacle that starts rolling towards
+    the train at `a` just after the last reading closes `a t^2 / 2` more than the curves count
+    over the stop time t (t1 + t2 + t3 of the real EBI at measured `speed` m/s, a fresh report,
+    normal conditions); at the declaration's and the error budget's corner, where the train
+    stops exactly `standstill_margin` short, that uses the margin up at a = 2 margin / t^2."""
+    v = z3.RealVal(f"{speed.numerator}/{speed.denominator}")
+    p = real_curves(d, v, v, z3.RealVal(0), 0, 0).phases
+    t = z3.simplify(p["t1"] + p["t2"] + p["t3"])
+    stop = Fraction(t.as_fraction()) if z3.is_rational_value(t) else Fraction(str(t.as_decimal(12)).rstrip("?"))
+    return stop, 2 * d.margin / (stop * stop)

@@ -114,21 +114,28 @@ class Lemmas:
         memory's (the remembered own speed, at least the obstacle's, plus the train's least
         speed), not a measurement: the obstacle's own speed is anything up to it (release.py).
         `periods`: monitor periods in the reaction, the train's and the curve's (the supervision's
-        two; one for a zone limit, where the brake is demanded at the limit itself)."""
+        CONTRACT_PERIODS; one for a zone limit, where the brake is demanded at the limit itself).
+        The sensors err within the declared accuracy on a supervised curve (the error budget:
+        the true distance D within `distance_accuracy` of the reported Dr, the true closing
+        within `closing_accuracy` of the measured c) and measure exactly at a zone limit."""
         self.d, self.service, self.track, self.brake = d, service, track, brake
-        v, v0, c, w0, age, grad, D = z3.Reals("v v0 c w0 age grad D")
-        self.v, self.v0, self.c, self.w0, self.age, self.grad, self.D = v, v0, c, w0, age, grad, D
+        v, v0, c, w0, age, grad, D, Dr = z3.Reals("v v0 c w0 age grad D D_reported")
+        self.v, self.v0, self.c, self.w0, self.age, self.grad, self.D, self.Dr = v, v0, c, w0, age, grad, D, Dr
+        zone = periods == CONTRACT_ZONE_PERIODS
+        err_d, err_c = d.budget(not zone)                   # what the world's sensors may do
         self.x1, self.v1, self.x2, self.v2, self.xb, self.tb = z3.Reals("x1 v1 x2 v2 xb tb")
         self.brakes = d.brake(service)
         self.dec = [z3.Real(f"d{i}") for i in range(len(self.brakes))]
         e = q(d.speed_error)
         self.gg = q(G) * grad
-        self.real = real_curves(curve_d or d, v, c, age, track, brake, service, periods)
+        self.real = real_curves(curve_d or d, v, c, age, track, brake, service, periods, budget=not zone)
         self.domain = [0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
                        0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient),
-                       w0 <= c - v * (1 - e) if remembered else c == v0 + w0,
+                       Dr - q(err_d) <= D, D <= Dr + q(err_d),
                        -q(Fraction(MAX_CLOSING_CMS, 100)) <= c,
                        c <= q(Fraction(MAX_TRACK_CLOSING_CMS, 100))]
+        self.domain += ([w0 <= c + q(err_c) - v * (1 - e)] if remembered else
+                        [c - q(err_c) <= v0 + w0, v0 + w0 <= c + q(err_c)])
         self.domain += [di >= q(a * d.factor(track, brake)) for di, (_, a) in zip(self.dec, self.brakes)]
         self.t1 = age + q(periods * d.period + d.traction_cutoff)
         self.t2 = q(max(Fraction(0), d.buildup(service) - d.traction_cutoff))
@@ -163,7 +170,7 @@ class Lemmas:
         s_decl, t_decl = self.declared()
         gap = self.D - self.x1 - self.x2 - self.xb - self.closed
         return z3.And(*self.domain, *(self.kind(kind) if kind else []), *self.reaction, *self.buildup,
-                      self.xb <= s_decl, 0 <= self.tb, self.tb <= t_decl, self.D >= self.real.ebi, gap < q(keep))
+                      self.xb <= s_decl, 0 <= self.tb, self.tb <= t_decl, self.Dr >= self.real.ebi, gap < q(keep))
 
     def theorem(self, kind: str):
         """The steps glued by one formula (issue 40 item 5): the phases' dI bounds, each step's
@@ -190,7 +197,8 @@ class Lemmas:
 
     def named(self) -> dict:
         out = {"measured_speed": self.v, "true_speed": self.v0, "closing_speed": self.c, "obstacle_speed": self.w0,
-               "report_age": self.age, "gradient": self.grad, "distance": self.D, "curve_ebi": self.real.ebi,
+               "report_age": self.age, "gradient": self.grad, "distance": self.D, "reported_distance": self.Dr,
+               "curve_ebi": self.real.ebi,
                "reaction_travel": self.x1, "buildup_travel": self.x2, "braking_travel": self.xb,
                "braking_time": self.tb, "speed_after_reaction": self.v1, "speed_at_braking": self.v2}
         out.update({f"decel{i}": di for i, di in enumerate(self.dec)})
@@ -238,9 +246,10 @@ class Lemmas:
         return [
             (f"obstacle ({kind}): its travel until the train stands within the curve's", "obstacle",
              z3.And(*base, 0 <= self.tb, self.tb <= p["t3"], self.closed > p["w"] * (p["t1"] + p["t2"] + p["t3"]))),
-            (f"stops short ({kind}): D >= EBI and the phases' bounds leave the margin", "composition",
+            (f"stops short ({kind}): the reported distance >= EBI, the sensors' error and the phases' bounds leave "
+             "the margin", "composition",
              z3.And(*base, self.x1 <= p["s1"], self.x2 <= p["s2"], self.xb <= p["s3"],
-                    self.closed <= p["w"] * (p["t1"] + p["t2"] + p["t3"]), self.D >= self.real.ebi,
+                    self.closed <= p["w"] * (p["t1"] + p["t2"] + p["t3"]), self.Dr >= self.real.ebi,
                     self.D - self.x1 - self.x2 - self.xb - self.closed < q(self.d.margin))),
         ]
 
@@ -315,7 +324,7 @@ def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIME
             # what the physics needs, on the monitor's timing contract (model.CONTRACT_*): the
             # code's own constants are only inside `fn`
             real = real_curves(d, s / 100, c / 100, a / 1000, track, brake, service,
-                               CONTRACT_ZONE_PERIODS if service else CONTRACT_PERIODS)
+                               CONTRACT_ZONE_PERIODS if service else CONTRACT_PERIODS, budget=not service)
             names = ("ebi",) if service else CURVES
             proved_facts = [[] for _ in paths]       # per path: curves already proved there (sound hypotheses)
             proved_on = {name: set() for name in names}

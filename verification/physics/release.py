@@ -3,11 +3,12 @@ monitor cycle (issue 30 item 4), the way a KeYmaera proof of a controller loop s
 
 The invariant, at every cycle while an obstacle is remembered:
 
-    (M) the remembered position is never beyond the obstacle: x >= N, where x is the true
-        gap and N the remembered distance;
+    (M) the remembered position is never beyond the obstacle by more than the sensors'
+        distance accuracy a: x >= N - a, where x is the true gap and N the remembered
+        distance (N came from a report, within a of the truth; the error budget);
     (F) at a cycle whose demand is not an emergency, N > EBI(v) of the remembered obstacle
         (the core's rule: supervision_demand, combine, keep_held and hold only ever raise a
-        demand; their CrossHair contracts), so x > EBI(v).
+        demand; their CrossHair contracts), so x > EBI(v) - a: EBI counts a.
 
 The step, for every train inside the declaration:
 
@@ -54,15 +55,16 @@ def memory_step(d: Declaration, accel: Fraction, timeout_ms: int = TIMEOUT_MS, c
     (proved for the integer code in `near_travel_results`). `count_age=False`: the position
     moved by the period alone, as before the age was counted there (a test refutes it)."""
     v, v0, x, n, w, w0, grad, age, xp, moved = z3.Reals("v v0 x N W w0 grad age xp moved")
+    a = q(d.distance_accuracy)       # (M) with the error budget: x >= N - a (N came from a report)
     e = q(d.speed_error)
     tau = age + q(d.period)
     step = tau if count_age else q(d.period)
     a_plus = pos(q(d.max_accel) + q(G) * grad)
     f = z3.And(0 <= v, v <= q(Fraction(MAX_SPEED_CMS, 100)), v * (1 - e) <= v0, v0 <= v * (1 + e),
                0 <= age, age <= q(d.max_age), -q(MAX_UPHILL) <= grad, grad <= q(d.max_gradient), 0 <= w, w0 <= w,
-               n <= x, 0 <= xp, xp <= v0 * tau + a_plus * tau * tau / 2,        # the reaction phase's dI bound
+               n - a <= x, 0 <= xp, xp <= v0 * tau + a_plus * tau * tau / 2,    # the reaction phase's dI bound
                moved >= v * (1 + e) * step + q(accel) * step * step / 2 + w * step,  # near_travel's proved bound
-               x - xp - pos(w0) * tau < n - moved)
+               x - xp - pos(w0) * tau < n - a - moved)
     r = Result("memory: the remembered position never passes the obstacle over a cycle (the period, and a "
                "sighting's report age once)", "release", "memory")
     return timed(r, f, {"measured_speed": v, "true_speed": v0, "report_age": age, "gap": x, "remembered": n,
@@ -208,7 +210,7 @@ def cycle_results(d: Declaration, timeout_ms: int = TIMEOUT_MS) -> list[Result]:
             ("after a free period, the stopping distance and time at the true speed within the curve's phase 3",
              "braking", z3.And(*base, *free, z3.Or(sd > p["s3"], td > p["t3"]))),
             ("after a free period, the true gap is still at least EBD at the true speed", "composition",
-             z3.And(*base, *free, ebd_after[0] <= p["s3"], ebd_after[1] <= p["t3"], lem.D >= lem.real.ebi,
+             z3.And(*base, *free, ebd_after[0] <= p["s3"], ebd_after[1] <= p["t3"], lem.Dr >= lem.real.ebi,
                     lem.D - xp - pos(lem.w0) * period
                     < ebd_after[0] + q(d.margin) + pos(lem.w0) * ebd_after[1]))]
         for name, phase, formula in steps:

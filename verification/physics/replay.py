@@ -6,7 +6,9 @@ obstacle, the true speed the measured one plus the speed error, a fresh report) 
 integer curve falls shortest of the real one, doubling the shortfall until it can no more.
 The scenario puts the world's train at the declaration's corner there: the guaranteed
 deceleration, the whole equivalent build-up as dead time, full traction until the cut-off,
-the steepest downhill, the speed under-reported by the whole error. The sensors' range puts
+the steepest downhill, the speed under-reported by the whole error; and the sensors at the
+error budget's (`sensor_corner`): the obstacle reported the whole distance accuracy farther
+and closing the whole closing accuracy slower than it is. The sensors' range puts
 the first reading one cycle's travel inside the shipped EBI: the obstacle came into range
 just after a reading, one cycle after the last reading that found it beyond EBI. With the
 cycle from a reading to the demand at the train, these are the two periods the supervised
@@ -87,7 +89,7 @@ def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool
     s, c, a = z3.Reals("speed_cms closing_cms age_ms")
     e = Fraction(cfg.speed_error_permille, 1000)
     true_cms = s * q(1 + e)
-    w = c - true_cms
+    w = c + cfg.closing_accuracy_cms - true_cms      # the sensors at their corner (sensor_corner)
     domain = [0 <= s, true_cms <= MAX_SPEED_CMS, a == 0,
               *([0 < w, w <= PLAYABLE_OBSTACLE_CMS] if oncoming else [w == 0])]
     paths = symbolic.explore(braking.curves, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,
@@ -132,14 +134,15 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     monitor braked at the first reading."""
     import json
 
-    from fmu.acceptance import approach, approach_accel, cruise_speed
+    from fmu.acceptance import approach, approach_accel, cruise_speed, sensor_corner
     from monitor.core import braking as shipped
 
     args = (cfg, point["speed_cms"], point["track"], point["brake"], point["closing_cms"], 0)
     ebi_shipped, ebi_weak = shipped.curves(*args).ebi_dm / 10, weak.curves(*args).ebi_dm / 10
     e = cfg.speed_error_permille / 1000
     true_speed = min(point["speed_cms"] * (1 + e), MAX_SPEED_CMS) / 100
-    obstacle = max(0.0, point["closing_cms"] / 100 - true_speed)
+    bias_m, bias_mps = sensor_corner(cfg)
+    obstacle = max(0.0, point["closing_cms"] / 100 - bias_mps - true_speed)
     # pulling: full traction downhill until the demand (the cruising speed is above any it
     # reaches); cruising: downhill, it coasts. It starts slower either way, so that its speed
     # at the first reading is the point's
@@ -148,7 +151,8 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
     cruise = cruise_speed(true_speed, pulling)
     # one cycle's travel inside the shipped EBI: the obstacle came into range just after a
     # reading, a cycle after the last reading that found it beyond EBI (the sampling period)
-    seen_at = max(1.0, ebi_shipped - (true_speed + obstacle) * cfg.period_ms / 1000 - SIGHTING_INSIDE_M)
+    # (the reading reports it the distance bias farther than it is)
+    seen_at = max(1.0, ebi_shipped - bias_m - (true_speed + obstacle) * cfg.period_ms / 1000 - SIGHTING_INSIDE_M)
     position = seen_at + run + obstacle * APPROACH_S
     worst = min(a for _, a in emergency_bands(cfg)) / 1000 - 9.81 * cfg.max_gradient_permille / 1000
     duration = APPROACH_S + cfg.emergency_buildup_ms / 1000 + cfg.traction_cutoff_ms / 1000 + true_speed / worst + 20
@@ -160,13 +164,22 @@ def scenario_text(cfg: Config, point: dict, weak: ModuleType, title: str, table:
              f"type = \"{'train' if obstacle > 0 else 'static'}\"", "",
              f"[sensors]  # first reading a cycle's travel inside the shipped EBI ({ebi_shipped:.1f} m), outside "
              f"the weakened EBI ({ebi_weak:.1f} m)",
-             f"range_m = {seen_at + 0.05:.2f}", "noise_sigma_m = 0.0", "", "[braking]"]
+             f"range_m = {seen_at + 0.05:.2f}", "noise_sigma_m = 0.0", *sensor_lines(cfg), "", "[braking]"]
     lines += [f"{k} = {json.dumps(v)}" for k, v in declaration_si(cfg).items()]
     if stall_s is not None:
         lines += ["", "[[faults]]  # the monitor stalls where the weakened one first demands", 'kind = "monitor_stop"',
                   f"start_s = {stall_s:.1f}"]
     return "\n".join(lines) + "\n", {"true_speed_mps": true_speed, "obstacle_speed_mps": obstacle,
                                       "ebi_shipped_m": ebi_shipped, "ebi_weakened_m": ebi_weak}
+
+
+def sensor_lines(cfg: Config) -> list[str]:
+    """The [sensors] keys of fmu.acceptance.sensor_corner, for a replay's scenario."""
+    from fmu.acceptance import sensor_corner
+
+    bias_m, bias_mps = sensor_corner(cfg)
+    return [f"distance_bias_m = {bias_m}  # the sensors at their declared accuracy's worst: farther,",
+            f"closing_bias_mps = {bias_mps}  # and closing slower than it is"]
 
 
 def corner_train(cfg: Config, start_speed: float, cruise: float, pulling: bool, when: str) -> list[str]:
@@ -213,7 +226,7 @@ def memory_scenario_text(cfg: Config, title: str, table: Path) -> tuple[str, dic
              "[[obstacles]]", f"position_m = {seen_at + (v + w) * m['approach_s']:.2f}", f"speed_mps = {-w}",
              'type = "train"', "", f"[sensors]  # first seen {m['beyond_warning_m']:.0f} m beyond the shipped warning "
              f"curve ({c.warning_dm / 10:.1f} m; EBI {c.ebi_dm / 10:.1f} m)", f"range_m = {seen_at:.2f}",
-             "noise_sigma_m = 0.0", "", "[[faults]]", 'kind = "blind"', f"start_s = {blind_from}",
+             "noise_sigma_m = 0.0", *sensor_lines(cfg), "", "[[faults]]", 'kind = "blind"', f"start_s = {blind_from}",
              f"end_s = {blind_from + m['blind_s']}", "", "[braking]"]
     lines += [f"{k} = {json.dumps(x)}" for k, x in declaration_si(cfg).items()]
     figures = {"true_speed_mps": v, "obstacle_speed_mps": w, "ebi_shipped_m": c.ebi_dm / 10,

@@ -38,7 +38,9 @@ def weakenings_md(rows: list) -> str:
           "by more than a cycle's travel; for an oncoming obstacle, the largest shortfall) is written as a cosim "
           "scenario on the declaration with speed error 0 (the speed error's own weakening keeps it): the "
           "world's train at the declaration's corner, pulling at full traction until the demand or cruising, "
-          "the first reading one cycle's travel inside the shipped EBI; it is played with a monitor FMU built "
+          "its sensors at the error budget's (the obstacle reported the whole distance accuracy farther and "
+          "closing the whole closing accuracy slower than it is), the first reading one cycle's travel inside "
+          "the shipped EBI; it is played with a monitor FMU built "
           "from the weakened C and with the shipped one (verification/physics/replay.py says why).\n"]
     table = []
     for r in rows:

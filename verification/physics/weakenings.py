@@ -31,6 +31,7 @@ class Weakening:
     python: tuple          # ((old, new), ...) in monitor/core/<module>.py
     c: tuple               # ((old, new), ...) in rg_core.c or rg_core.h
     module: str = "braking"    # the Python module edited: braking (the curves), cycle or memory (the memory's feed)
+    no_replay: str = ""        # why no playable point can show it (the report says so instead of a replay)
 
     @property
     def memory(self) -> bool:
@@ -63,17 +64,37 @@ WEAKENINGS = (
     Weakening("oncoming-ignored", "the oncoming obstacle's travel left out of EBI",
               (("    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm + obstacle_run_dm(obstacle_cms, t1 + t2 + t3)\n",
                 "    ebi = s1 + s2 + s3 + cfg.standstill_margin_dm\n"),),
-              (("    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3);",
-                "    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm;"),)),
+              (("    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3) + near_dm;",
+                "    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + near_dm;"),)),
     # issue 40 item 2: the memory's feed, which the pieces' proofs could not see
     Weakening("memory-moved-at-half", "the caller moves a remembered obstacle at half its closing speed",
-              (("setup.track_accel, t.closing,\n", "setup.track_accel, t.closing // 2,\n"),),
-              (("rg_near_travel(speed, err, track_accel, next_tracks[i].closing,",
-                "rg_near_travel(speed, err, track_accel, next_tracks[i].closing / 2,"),), module="cycle"),
+              (("t.closing + cfg.closing_accuracy_cms, cfg.period_ms", "t.closing // 2 + cfg.closing_accuracy_cms, cfg.period_ms"),),
+              (("(int64_t)next_tracks[i].closing + cfg->closing_accuracy_cms,",
+                "(int64_t)next_tracks[i].closing / 2 + cfg->closing_accuracy_cms,"),), module="cycle"),
     Weakening("memory-half-speed", "observe remembers half an oncoming obstacle's speed",
               (("    own = obstacle_cms if obstacle_cms > 0 else 0\n", "    own = obstacle_cms // 2 if obstacle_cms > 0 else 0\n"),),
               (("    const int32_t own = obstacle_cms > 0 ? obstacle_cms : 0;",
                 "    const int32_t own = obstacle_cms > 0 ? obstacle_cms / 2 : 0;"),), module="memory"),
+    # issue 40 item 3: the error budget, each of its terms left out once
+    Weakening("distance-accuracy-ignored", "the sensors' distance accuracy left out of EBI",
+              (("    ebi += cfg.distance_accuracy_dm\n", "    ebi += 0\n"),),
+              (("rg_obstacle_run_dm(obstacle, t1 + t2 + t3) + near_dm;", "rg_obstacle_run_dm(obstacle, t1 + t2 + t3);"),)),
+    Weakening("closing-accuracy-ignored", "the sensors' closing-speed accuracy left out of the curves",
+              (("closing_cms + cfg.closing_accuracy_cms, age_ms, service,", "closing_cms, age_ms, service,"),),
+              (("(int64_t)closing_cms + (supervised ? cfg->closing_accuracy_cms : 0)", "(int64_t)closing_cms + 0"),)),
+    Weakening("memory-accuracy-ignored", "the memory moves a remembered obstacle at its measured closing speed, "
+              "without the sensors' accuracy",
+              (("t.closing + cfg.closing_accuracy_cms, cfg.period_ms", "t.closing, cfg.period_ms"),),
+              (("(int64_t)next_tracks[i].closing + cfg->closing_accuracy_cms,", "(int64_t)next_tracks[i].closing,"),),
+              module="cycle"),
+    Weakening("passed-accuracy-ignored", "a remembered obstacle counted passed at its reported position, not a "
+              "distance accuracy beyond it",
+              (("reach = far + cfg.distance_accuracy_dm * UNITS_PER_DM", "reach = far"),),
+              (("const int64_t reach = far + (int64_t)cfg->distance_accuracy_dm * RG_UNITS_PER_DM;",
+                "const int64_t reach = far;"),), module="cycle",
+              no_replay="no playable point: a train passes a remembered obstacle's reported position only if its "
+              "curves, which count the distance accuracy, did not stop it first; the one-cycle invariant (whole "
+              "cycle) starts from any remembered state, the closed loop never reaches one where this edit matters"),
 )
 
 

@@ -23,7 +23,11 @@ FULL = {"shipped": (4000, 600.0), "paper_zones": (1000, 300.0), "paper_literal":
         "phantoms_held": (1000, 300.0)}
 SEEDS = {"shipped": 1000, "paper_zones": 1001, "paper_literal": 1002, "shipped_phantoms": 1003, "phantoms_held": 1003}
 RUN_KEYS = ("shipped", "paper_zones", "paper_literal", "shipped_phantoms", "phantoms_held")
-PHANTOM_STOPS_FACTOR = 0.25     # revocable release: at most this share of the stops before the braking curves
+# revocable release: at most this share of the stops before the braking curves. 0.25 until the
+# sensors' error budget (issue 40 item 3: every curve 50 m longer, the obstacle's speed 1 m/s
+# faster, the memory moved 1 m/s faster) raised the quick run's phantom stops from 7.0 to 41.0
+# per train-hour (0.07 to 0.43 of before); the gate keeps catching a regression beyond that
+PHANTOM_STOPS_FACTOR = 0.5
 TARGET = {True: 50_000.0, False: 600_000.0}
 CORE_TRAINS = {True: 20, False: 40}
 

@@ -79,10 +79,13 @@ class Run:
 
 # eq. 9's sensors misperceive the zone independently every step: a misperceived distance is
 # drawn anywhere in the wrong zone, hundreds of metres from the last one, so their distance
-# has no continuity to check. Declared as such (6 km accuracy), the monitor believes them as
-# the paper does; with the default 50 m every misperception farther is implausible (issue 38
-# item 3) and the paper's observation error rates cannot show
-EQ9_SENSORS = Config(distance_accuracy_dm=60000)
+# has no continuity to check. The monitor believes them as the paper does: plausibility
+# compares no two reports (a window shorter than a period); with it, every misperception
+# farther is implausible (issue 38 item 3) and the paper's observation error rates cannot
+# show. (Until issue 40 item 3 this was a declared 6 km accuracy; the curves and the memory
+# now count the declared accuracy, so that would brake everywhere: the curves keep the
+# default error budget of 50 m and 1 m/s, which eq. 9's misperceptions do not respect.)
+EQ9_SENSORS = Config(plausibility_ms=1)
 
 
 def load_setup(table: Optional[bytes] = None) -> tuple:

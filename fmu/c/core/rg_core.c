@@ -607,13 +607,18 @@ static int32_t conditioned_bands(const rg_config *cfg, int32_t track, int32_t br
 }
 
 void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
-               int32_t age_ms, int32_t service, int32_t periods, rg_curve_set *out)
+               int32_t age_ms, int32_t service, int32_t supervised, rg_curve_set *out)
 {
     rg_band bands[RG_MAX_BANDS] = {{0, 0}, {0, 0}, {0, 0}};   /* (whole: EVA merges the band index) */
     const int64_t v = speed_cms, e = cfg->speed_error_permille;
     const int64_t v_max = (v * (1000 + e) + 999) / 1000;
     const int64_t v_min = v * (1000 - e) / 1000;
-    const int64_t obstacle = closing_cms - v_min;       /* the obstacle's own speed towards us */
+    const int64_t periods = supervised ? RG_SUPERVISED_PERIODS : RG_ZONE_PERIODS;
+    /* the error budget of the supervised curves: the obstacle may be distance_accuracy_dm
+       nearer than reported and close closing_accuracy_cms faster than measured */
+    const int64_t near_dm = supervised ? cfg->distance_accuracy_dm : 0;
+    const int64_t obstacle = (int64_t)closing_cms + (supervised ? cfg->closing_accuracy_cms : 0)
+                             - v_min;                   /* the obstacle's own speed towards us */
     const int64_t g = rg_gradient_accel_mms2(cfg->max_gradient_permille);
     const int32_t n = conditioned_bands(cfg, track, brake, service, g, bands);
     const int64_t buildup = service ? cfg->service_buildup_ms : cfg->emergency_buildup_ms;
@@ -621,7 +626,7 @@ void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t b
     /* phase 1: report age + `periods` monitor periods (RG_SUPERVISED_PERIODS: a stalled
        monitor's; RG_ZONE_PERIODS for the table's zone limits: the demand's) +
        traction cut-off, under full traction and downhill */
-    t1 = (int64_t)age_ms + (int64_t)periods * cfg->period_ms + cfg->traction_cutoff_ms;
+    t1 = (int64_t)age_ms + periods * cfg->period_ms + cfg->traction_cutoff_ms;
     a1 = (int64_t)cfg->max_accel_mms2 + g;
     s1 = rg_run_dm(v_max, a1, t1);
     v1 = rg_speed_after_cms(v_max, a1, t1);
@@ -632,9 +637,9 @@ void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t b
     v2 = rg_speed_after_cms(v1, g, t2);
     /* phase 3: guaranteed braking to standstill */
     rg_stop_dm_ms(v2, bands, n, &s3, &t3);
-    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3);
+    ebi = s1 + s2 + s3 + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, t1 + t2 + t3) + near_dm;
     rg_stop_dm_ms(v, bands, n, &ebd_dist, &ebd_time);
-    ebd = ebd_dist + cfg->standstill_margin_dm + rg_obstacle_run_dm(obstacle, ebd_time);
+    ebd = ebd_dist + cfg->standstill_margin_dm + near_dm + rg_obstacle_run_dm(obstacle, ebd_time);
     lead = v_max + (obstacle > 0 ? obstacle : 0);
     sbi = ebi + rg_run_dm(lead, 0, cfg->service_buildup_ms);
     out->ebd_dm = rg_cap_dm(ebd);
@@ -849,7 +854,7 @@ int64_t rg_accel_run(int64_t accel_mms2, int64_t period_ms)
  * closing at its own speed. The third ensures is stronger than Python's two: every term
  * (speed error, acceleration, the obstacle's speed) is there, each rounded up. */
 /*@ requires 0 <= speed_cms <= 12000 && 0 <= error_permille <= 500 && 0 <= accel_mms2 <= 10000;
-    requires 0 <= obstacle_cms <= 15000 && 1 <= period_ms <= 70000;
+    requires 0 <= obstacle_cms <= 30000 && 1 <= period_ms <= 70000;
     assigns \nothing;
     ensures \result * 1000 >= speed_cms * (1000 + error_permille) * period_ms + obstacle_cms * period_ms * 1000;
     ensures \result >= speed_cms * period_ms + obstacle_cms * period_ms;
@@ -1024,7 +1029,7 @@ void rg_plausibility(rg_plaus *p, int32_t present, int32_t distance_dm, int32_t 
  * measured again (memory.seen_beyond): farther than the remembered obstacle can be (far) by
  * more than the two reports' declared accuracy. The sensors report their nearest object, so
  * it counts as ABSENT does (rg_forget) and becomes the track once the old one is forgotten. */
-/*@ requires near >= -1 && far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+/*@ requires near >= -1 && far >= -600000000 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
     assigns \nothing;
     ensures \result == 0 || \result == 1;
     ensures \result == 1 ==> near != -1 && distance_dm * 10000 > far;
@@ -1086,11 +1091,11 @@ void rg_observe(rg_track *track, int32_t distance_dm, int32_t obstacle_cms, int3
 }
 
 /* The evidence count and state of a remembered obstacle that no channel shows. `far` is
- * the remembered position less the train's least travel: below 0 the train has passed it
- * (forgotten at once). Fresh unanimous ABSENT (`evidence`) while `far` lies inside the
- * declared sensor range counts towards forgetting, after `forget_cycles` such cycles in a
- * row; anything else holds it. (Python: forget(cycles, evidence, in_range, passed, n) with
- * in_range = far <= range_dm * 10000 and passed = far < 0 computed by cycle.py.) */
+ * the farthest the obstacle can lie: the remembered position less the train's least travel,
+ * plus the distance accuracy; below 0 the train has passed it (forgotten at once). Fresh
+ * unanimous ABSENT (`evidence`) while `far` lies inside the declared sensor range counts
+ * towards forgetting, after `forget_cycles` such cycles in a row; anything else holds it. (Python: forget(cycles, evidence, in_range, passed, n) with
+ * in_range = reach <= range_dm * 10000 and passed = reach < 0 computed by cycle.py.) */
 /*@ requires forget_cycles >= 1;
     requires \valid(state);
     assigns *state;
@@ -1183,9 +1188,9 @@ static void zone_limits(const rg_config *cfg, int32_t speed, int32_t toward, int
                         int32_t *alpha2)
 {
     rg_curve_set c;
-    rg_curves(cfg, speed, 0, 0, toward, age, 0, RG_ZONE_PERIODS, &c);
+    rg_curves(cfg, speed, 0, 0, toward, age, 0, 0, &c);
     *alpha2 = c.ebi_dm;
-    rg_curves(cfg, speed, 0, 0, toward, age, 1, RG_ZONE_PERIODS, &c);
+    rg_curves(cfg, speed, 0, 0, toward, age, 1, 0, &c);
     *alpha1 = c.ebi_dm > *alpha2 ? c.ebi_dm : *alpha2;
 }
 
@@ -1215,7 +1220,7 @@ static const rg_track_slot RG_EMPTY_SLOT = {RG_NO_TRACK, RG_NO_TRACK, 0, 0, 0, 0
  * function with a contract is called either from rg_step or from the proved functions, never
  * from both (WP proves the call preconditions in the functions it is given, so one also
  * called from rg_step would keep a partial status), and rg_step calls rg_seen_beyond. */
-/*@ requires near >= -1 && far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+/*@ requires near >= -1 && far >= -600000000 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
     assigns \nothing;
     ensures \result == rg_relation_l(near, far, distance_dm, accuracy_dm);
     ensures 0 <= \result <= 2;
@@ -1240,7 +1245,7 @@ int32_t rg_relation(int32_t near, int32_t far, int32_t distance_dm, int32_t accu
  * the nearest track nearer (rg_observe). `tracks` are ordered, nearest first. */
 /*@ requires \valid_read(tracks + (0 .. RG_TRACKS - 1)) && \valid(create);
     requires \separated(create, tracks + (0 .. RG_TRACKS - 1));
-    requires \forall integer i; 0 <= i < RG_TRACKS ==> tracks[i].near >= -1 && tracks[i].far >= -1;
+    requires \forall integer i; 0 <= i < RG_TRACKS ==> tracks[i].near >= -1 && tracks[i].far >= -600000000;
     requires 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
     assigns *create;
     ensures -1 <= \result < RG_TRACKS && (*create == 0 || *create == 1);
@@ -1275,7 +1280,7 @@ int32_t rg_assign(const rg_track_slot tracks[RG_TRACKS], int32_t distance_dm, in
  * confirmed picture at `distance_dm` also measures (the same obstacle to within the sensors'
  * accuracy, emptied into the one it measures). */
 /*@ requires \valid_read(track);
-    requires track->near >= -1 && track->far >= -1 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
+    requires track->near >= -1 && track->far >= -600000000 && 0 <= distance_dm <= 65535 && 0 <= accuracy_dm <= 60000;
     assigns \nothing;
     ensures \result == 0 || \result == 1;
     ensures \result == 1 <==> (slot >= 0 && j > slot && track->near != -1
@@ -1498,7 +1503,10 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
     }
     /*@ loop pragma UNROLL RG_TRACKS + 1; */
     for (i = 0; i < RG_TRACKS; i++) {
-        if (s->tracks[i].near < RG_NO_TRACK || s->tracks[i].near > RG_MAX_TRACK || s->tracks[i].far < RG_NO_TRACK
+        /* (a kept track's far may lie up to the distance accuracy below 0: it is passed below that) */
+        if (s->tracks[i].near < RG_NO_TRACK || s->tracks[i].near > RG_MAX_TRACK
+            || (int64_t)s->tracks[i].far < (s->tracks[i].near == RG_NO_TRACK ? RG_NO_TRACK
+                                             : -(int64_t)cfg->distance_accuracy_dm * RG_UNITS_PER_DM)
             || s->tracks[i].far > RG_MAX_TRACK || s->tracks[i].closing < 0
             || s->tracks[i].closing > RG_MAX_CLOSING_CMS) {
             safe_stop_fallback(s, out);
@@ -1636,8 +1644,11 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         } else {                            /* not seen: evidence, or held */
             const int64_t far = (int64_t)k->far - rg_far_travel(train_ok ? speed : 0, err, track_accel, cfg->period_ms);
             const int32_t beyond = confirmed && rg_seen_beyond(k->near, k->far, distance, cfg->distance_accuracy_dm);
-            const int32_t absent = rg_forget(k->absent, (beyond || evidence_absent) && !stale, far, cfg->sensor_range_dm,
-                                             k->strong ? forget_cycles : forget_single, &states[i]);
+            /* the farthest the obstacle can lie: a distance accuracy beyond where it was reported */
+            const int64_t reach = far + (int64_t)cfg->distance_accuracy_dm * RG_UNITS_PER_DM;
+            const int32_t absent = rg_forget(k->absent, (beyond || evidence_absent) && !stale, reach,
+                                             cfg->sensor_range_dm, k->strong ? forget_cycles : forget_single,
+                                             &states[i]);
             if (states[i] == RG_TRACK_FORGOTTEN || states[i] == RG_TRACK_PASSED) {
                 *k = RG_EMPTY_SLOT;
             } else {
@@ -1680,7 +1691,8 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
         next_states[i] = states[i];
         if (next_tracks[i].near != RG_NO_TRACK) {
             const int64_t near = (int64_t)next_tracks[i].near
-                                 - rg_near_travel(speed, err, track_accel, next_tracks[i].closing,
+                                 - rg_near_travel(speed, err, track_accel,
+                                                  (int64_t)next_tracks[i].closing + cfg->closing_accuracy_cms,
                                                   (int64_t)cfg->period_ms + ages[i]);
             next_tracks[i].near = near > 0 ? (int32_t)near : 0;
         }
@@ -1693,15 +1705,14 @@ void rg_step(const rg_config *cfg, const rg_table *t, rg_state *s, const rg_inpu
      *    (rg_decide); the table's zones under normal ones; the observation reads the voted
      *    picture alone. Every curve is computed before anything is decided from them (the proof
      *    of the whole cycle follows the step to there: verification/physics/whole_cycle.py) */
-    if (present) rg_curves(cfg, speed, track, brake, toward, age, 0, RG_SUPERVISED_PERIODS, &curve);
+    if (present) rg_curves(cfg, speed, track, brake, toward, age, 0, 1, &curve);
     /*@ loop pragma UNROLL RG_TRACKS + 1; */
     for (i = 0; i < RG_TRACKS; i++) {
         tcurves[i] = curve;
         watched[i] = tracks[i].near != RG_NO_TRACK
                      && !(confirmed && tracks[i].near == (int64_t)distance * RG_UNITS_PER_DM);
         if (watched[i])
-            rg_curves(cfg, speed, track, brake, tracks[i].closing + own_speed_up, ages[i], 0, RG_SUPERVISED_PERIODS,
-                      &tcurves[i]);
+            rg_curves(cfg, speed, track, brake, tracks[i].closing + own_speed_up, ages[i], 0, 1, &tcurves[i]);
     }
     if (present) {
         zone_limits(cfg, speed, toward, age, &alpha1, &alpha2);

@@ -323,11 +323,13 @@ int32_t rg_cap_dm(int64_t x);
 /* Periods in EBI's reaction phase (braking.SUPERVISED_PERIODS, ZONE_PERIODS): the supervision
  * counts the worse of a running monitor (the sampling period and the demand's) and a stalled
  * one (its last frame's period and the brakes' receiver timeout, 3 periods); the table's zone
- * limits the demand's only. */
+ * limits the demand's only. rg_curves(..., supervised, ...): 1 the supervised curves
+ * (braking.curves: RG_SUPERVISED_PERIODS and the sensors' error budget), 0 a zone limit
+ * (braking.ebi_dm: RG_ZONE_PERIODS, no budget). */
 #define RG_SUPERVISED_PERIODS 4
 #define RG_ZONE_PERIODS 1
 void rg_curves(const rg_config *cfg, int32_t speed_cms, int32_t track, int32_t brake, int32_t closing_cms,
-               int32_t age_ms, int32_t service, int32_t periods, rg_curve_set *out);
+               int32_t age_ms, int32_t service, int32_t supervised, rg_curve_set *out);
 int32_t rg_zone(int32_t distance_dm, int32_t alpha1_dm, int32_t alpha2_dm, int32_t warning_dm);
 int32_t rg_supervision_demand(int32_t present, int32_t distance_dm, int32_t ebi_dm, int32_t sbi_dm, int32_t warning_dm,
                               int32_t held, int32_t *warning);

@@ -75,6 +75,8 @@ typedef struct {
     double sensor_range;           /* m */
     double sensor_noise_sigma;     /* m */
     double sensor_miss_probability;
+    double sensor_distance_bias;   /* m, added to every reported distance */
+    double sensor_closing_bias;    /* m/s, added to every reported closing speed */
     double sensor_period;          /* s */
     int32_t sensor_seed;
     int32_t fault_kind;

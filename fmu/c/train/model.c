@@ -192,7 +192,7 @@ static void sample_sensors(ModelData *m)
 {
     const int visible = obstacle_there(m) && m->true_distance > 0.0 &&
                         m->true_distance <= m->sensor_range;
-    const double closing = m->speed - m->obstacle_speed;
+    const double closing = m->speed - m->obstacle_speed + m->sensor_closing_bias;
     int c;
     for (c = 0; c < TRAIN_CHANNELS; c++) {
         TrainChannel *ch = &m->ch[c];
@@ -224,7 +224,7 @@ static void sample_sensors(ModelData *m)
         }
 
         if (seen) {
-            double d = m->true_distance + sigma * noise;
+            double d = m->true_distance + m->sensor_distance_bias + sigma * noise;
             ch->status = 1;
             ch->distance = d > 0.0 ? d : 0.0;
             ch->closing_speed = closing;
@@ -439,6 +439,8 @@ void model_set_start_values(ModelData *m)
     m->sensor_range = 400.0;
     m->sensor_noise_sigma = 0.3;
     m->sensor_miss_probability = 0.0;
+    m->sensor_distance_bias = 0.0;
+    m->sensor_closing_bias = 0.0;
     m->sensor_period = 0.1;
     m->sensor_seed = 1;
     m->fault_kind = 0;
@@ -539,6 +541,9 @@ int model_initialize(ModelData *m, char *msg, size_t len)
         FAIL("sensor.noise_sigma = %g: must be finite and >= 0", m->sensor_noise_sigma);
     if (!(m->sensor_miss_probability >= 0.0 && m->sensor_miss_probability <= 1.0))
         FAIL("sensor.miss_probability = %g: must be in [0, 1]", m->sensor_miss_probability);
+    if (!isfinite(m->sensor_distance_bias) || !isfinite(m->sensor_closing_bias))
+        FAIL("sensor.distance_bias = %g, sensor.closing_bias = %g: must be finite", m->sensor_distance_bias,
+             m->sensor_closing_bias);
     if (!isfinite(m->sensor_period) || m->sensor_period < FIXED_STEP - SAMPLE_EPS)
         FAIL("sensor.period = %g: must be finite and >= %g s", m->sensor_period, FIXED_STEP);
     if (m->fault_kind < 0 || m->fault_kind > 8)
@@ -701,6 +706,8 @@ double model_get_real(const ModelData *m, uint32_t vr)
     case vr_sensor_range: return m->sensor_range;
     case vr_sensor_noise_sigma: return m->sensor_noise_sigma;
     case vr_sensor_miss_probability: return m->sensor_miss_probability;
+    case vr_sensor_distance_bias: return m->sensor_distance_bias;
+    case vr_sensor_closing_bias: return m->sensor_closing_bias;
     case vr_sensor_period: return m->sensor_period;
     case vr_fault_start: return m->fault_start;
     case vr_fault_end: return m->fault_end;
@@ -793,6 +800,8 @@ void model_set_real(ModelData *m, uint32_t vr, double v)
     case vr_sensor_range: m->sensor_range = v; break;
     case vr_sensor_noise_sigma: m->sensor_noise_sigma = v; break;
     case vr_sensor_miss_probability: m->sensor_miss_probability = v; break;
+    case vr_sensor_distance_bias: m->sensor_distance_bias = v; break;
+    case vr_sensor_closing_bias: m->sensor_closing_bias = v; break;
     case vr_sensor_period: m->sensor_period = v; break;
     case vr_fault_start: m->fault_start = v; break;
     case vr_fault_end: m->fault_end = v; break;
