@@ -90,8 +90,10 @@ def weakening_run(job: tuple) -> dict:
         failed_c = [r for r in whole_cycle_results(cfg, c_core=core, languages=("C",), first_failure=True)
                     if not r.proved]
     else:
-        failed = [r for r in obligations.integer_results(cfg, d, module) if not r.proved]
-        failed_c = [r for r in obligations.integer_results(cfg, d, obligations.c_code(core)) if not r.proved]
+        # (up to the first brake and condition that fails: caught needs one, the replay the first)
+        failed = [r for r in obligations.integer_results(cfg, d, module, first_failure=True) if not r.proved]
+        failed_c = [r for r in obligations.integer_results(cfg, d, obligations.c_code(core), first_failure=True)
+                    if not r.proved]
     # caught only when the proof fails on the weakened Python and on the weakened C alike
     row = {"weakening": w.name, "what": w.what, "caught": bool(failed) and bool(failed_c),
            "failed": [r.name for r in failed + failed_c], "replay": None}

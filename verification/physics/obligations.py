@@ -302,9 +302,11 @@ def c_code(core_dir=None) -> SimpleNamespace:
 
 
 def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIMEOUT_MS,
-                    progress: Callable[[str], None] = lambda _: None) -> list[Result]:
+                    progress: Callable[[str], None] = lambda _: None, first_failure: bool = False) -> list[Result]:
     """The shipped integer curves (`braking.curves`, run symbolically; or the C's, `c_code()`)
-    against the real ones."""
+    against the real ones. `first_failure`: stop after the first brake and condition with a
+    curve not proved (a planted weakening needs one; the emergency curves under normal
+    conditions come first, the replay's target)."""
     lang, source = getattr(braking, "LABEL", ""), getattr(braking, "WHERE", "braking")
     s, c, a = z3.Reals("speed_cms closing_cms age_ms")
     domain = [0 <= s, s <= MAX_SPEED_CMS, -MAX_CLOSING_CMS <= c, c <= MAX_TRACK_CLOSING_CMS,
@@ -375,6 +377,8 @@ def integer_results(cfg: Config, d: Declaration, braking, timeout_ms: int = TIME
                 out.append(r)
             progress(f"physics: integer curves ({'C' if lang else 'Python'}), {'service' if service else 'emergency'}, {cond}: "
                      f"{len(paths)} paths, {time.perf_counter() - t0:.1f} s")
+            if first_failure and not all(r.proved for r in out):
+                return out
     return out
 
 
