@@ -83,13 +83,16 @@ def worst_point(cfg: Config, braking: ModuleType, result: Result, oncoming: bool
     metre: there the weakened monitor first reads the obstacle outside its own EBI
     (scenario_text), and a cycle's lateness grows with the speed while the standstill margin
     does not. None when no playable point falls so short."""
+    from fmu.acceptance import sensor_corner
+
     ctx = result.context
     name, track, brake, service = ctx["curve"], ctx["track"], ctx["brake"], ctx["service"]
     d = Declaration.of(cfg)
     s, c, a = z3.Reals("speed_cms closing_cms age_ms")
     e = Fraction(cfg.speed_error_permille, 1000)
     true_cms = s * q(1 + e)
-    w = c + cfg.closing_accuracy_cms - true_cms      # the sensors at their corner (sensor_corner)
+    # the obstacle's true speed when the sensors report its closing speed at their corner
+    w = c - round(sensor_corner(cfg)[1] * 100) - true_cms
     domain = [0 <= s, true_cms <= MAX_SPEED_CMS, a == 0,
               *([0 < w, w <= PLAYABLE_OBSTACLE_CMS] if oncoming else [w == 0])]
     paths = symbolic.explore(braking.curves, {"cfg": cfg, "speed_cms": s, "track": track, "brake": brake,

@@ -185,11 +185,17 @@ def _slot(pointer, i: int) -> Track:
     return Track(*(slot[f] for f in ("near", "far", "closing", "cycles", "absent", "strong")))
 
 
+def _budget(cfg: Config) -> tuple[int, int]:
+    """(distance accuracy in 1e-5 m, closing accuracy in cm/s): the error budget, in the step's
+    units, as the world's constraints and the invariant count it."""
+    return cfg.distance_accuracy_dm * 10000, cfg.closing_accuracy_cms
+
+
 def _world(cfg: Config, v, age, sighted: bool, remembered: bool, near0, far0, closing0, dist, closing):
     """The world's constraints in code units (cm/s, ms, 1e-5 m) and its next gap: (constraints,
     x_next, w0, named)."""
     e, period = cfg.speed_error_permille, cfg.period_ms
-    far_units, faster = cfg.distance_accuracy_dm * 10000, cfg.closing_accuracy_cms     # the error budget
+    far_units, faster = _budget(cfg)
     v0, v0m, w0, x, xa, xp, xq, grad = z3.Reals(
         "true_speed true_speed_at_report obstacle_cms gap travel_age travel_period travel_last_period grad")
     a_plus = z3.If(cfg.max_accel_mms2 + grad * z3.RealVal("981/100") > 0,
@@ -301,7 +307,7 @@ def prove_case(cfg: Config, setup, runner: Callable, case: Case, label: str,
         tracks = [t for t in next_tracks if not _is_const(t.near, NO_TRACK)]
         # the error budget: a track may lie the distance accuracy beyond the obstacle, and
         # remembers its measured speed, which the memory and the curves count plus the accuracy
-        far_units, faster = cfg.distance_accuracy_dm * 10000, cfg.closing_accuracy_cms
+        far_units, faster = _budget(cfg)
         cover = z3.Or([z3.And(t.near - far_units <= x_next, t.closing + faster >= w0,
                               x_next + xp <= t.far + far_units) for t in tracks]) if tracks else z3.BoolVal(False)
         # the real curves count w = max(0, closing + accuracy - v (1 - e)) (model.real_curves): at least w0
