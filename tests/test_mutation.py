@@ -102,10 +102,16 @@ def test_the_tool_kills_a_planted_mutant_reports_a_planted_survivor_and_times_ou
     assert s["equivalent_but_killed"] == [killed.id]
 
 
-def test_mutant_ids_are_stable_unique_and_every_listed_equivalent_exists():
+@pytest.fixture(scope="module")
+def py_mutants():
+    """Every Python mutant the tool generates (about 3 s: made once for the tests below)."""
+    return M.python_mutants()
+
+
+def test_mutant_ids_are_stable_unique_and_every_listed_equivalent_exists(py_mutants):
     """The same source gives the same ids; no two mutants share one; every id in
     mutation_equivalents.toml names a mutant the tool generates, with a reason."""
-    first = [m.id for m in M.python_mutants()]
+    first = [m.id for m in py_mutants]
     assert first == [m.id for m in M.python_mutants()]
     assert len(first) == len(set(first))
     c_ids = [m.id for m in M.c_mutants()]
@@ -118,11 +124,11 @@ def test_mutant_ids_are_stable_unique_and_every_listed_equivalent_exists():
     assert all(len(reason) > 20 for reason in equivalents.values())
 
 
-def test_every_operator_is_generated_and_the_mutants_parse():
+def test_every_operator_is_generated_and_the_mutants_parse(py_mutants):
     """Each classic operator produces mutants of the Python core, and every mutant is valid Python."""
     import ast
 
-    mutants = M.python_mutants()
+    mutants = py_mutants
     assert {m.operator for m in mutants} == {"cmp", "bool", "drop", "minmax", "int", "arith", "not", "return",
                                              "isinstance"}
     for m in mutants:
@@ -155,3 +161,14 @@ def test_c_core_subset_is_killed_by_the_comparison_alone():
     assert set(states) == set(C_SUBSET)
     assert all(status == "killed" for status, _ in states.values()), states
     assert all("test_fmu_equivalence.py" in detail for _, detail in states.values()), states
+
+
+def test_a_mutant_runs_its_file_s_usual_killers_first_and_the_same_tests():
+    """tests_for only reorders: the selection is the same set (so is the verdict), the mutated
+    file's usual killers lead, and a killer that was not selected is not added."""
+    from verification.mutation.targets import tests_for
+
+    order = tests_for("monitor/core/memory.py", M.PY_TESTS)
+    assert sorted(order) == sorted(M.PY_TESTS) and order[:2] == ("tests/test_memory_mutants.py", "tests/test_tracks.py")
+    assert tests_for("monitor/core/voter.py", M.PY_TESTS) == M.PY_TESTS
+    assert tests_for("monitor/core/observation.py", ("tests/test_core_mutants.py",)) == ("tests/test_core_mutants.py",)

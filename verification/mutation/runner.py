@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Iterable, Optional
 
 from .mutant import Mutant
-from .targets import C_DIR, C_SEQUENCES, C_TESTS, JOBS, PY_TESTS, Progress, ROOT
+from .targets import C_DIR, C_SEQUENCES, C_TESTS, JOBS, PY_TESTS, Progress, ROOT, tests_for
 
 
 _SERVER = r"""
@@ -262,7 +262,7 @@ def _run_all(mutants: list[Mutant], tests: Iterable[str], jobs: int, timeout: Op
                             m.status, m.detail, m.seconds = server.run("", "", "", tests, limit, c_source=m.source)
                         else:
                             m.status, m.detail, m.seconds = server.run(_module_name(m.file), str(ROOT / m.file),
-                                                                       m.source, tests, limit)
+                                                                       m.source, tests_for(m.file, tests), limit)
                     except BaseException as exc:  # noqa: BLE001 - reported after the threads stop
                         failure.append(exc)
                         return

@@ -18,6 +18,19 @@ PY_TESTS = ("tests/test_core_mutants.py", "tests/test_memory_mutants.py", "tests
             "tests/test_core_memory.py",
             "tests/test_core_cycle.py", "tests/test_supervision.py", "tests/test_core_tables.py", "tests/test_table.py",
             "tests/test_core_stateful.py", "tests/test_risk.py")     # risk.py's killer last: reached only by what the others let through
+# per mutated file, the test files that kill most of its mutants, run before the rest of the
+# same selection (the set of tests is unchanged, so is the verdict: only a killed mutant's
+# time is, the passing files before its killer no longer run first). Measured on CI's
+# scopes: memory.py's 52 mutants took 2.1 s each with test_core_mutants.py first, 0.5 s
+# after; observation.py's table mutants 4.1 s
+KILLERS_FIRST = {"memory.py": ("tests/test_memory_mutants.py", "tests/test_tracks.py"),
+                 "observation.py": ("tests/test_core_tables.py",)}
+
+
+def tests_for(mutated: str, tests: tuple[str, ...]) -> tuple[str, ...]:
+    """`tests` with the mutated file's usual killers first (those of them that are selected)."""
+    first = tuple(t for t in KILLERS_FIRST.get(Path(mutated).name, ()) if t in tests)
+    return first + tuple(t for t in tests if t not in first)
 JOBS = 2
 C_DIR = ROOT / "fmu" / "c"
 C_FILES = ("fmu/c/core/rg_core.c",)
