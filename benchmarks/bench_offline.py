@@ -6,8 +6,9 @@ Run: python benchmarks/bench_offline.py [--json] [--repeat N] [--models m1 m2] [
 1. Per model (default plan, pipeline.run): solve + compile wall time, table size, bounds.
    Targets (issue 2 / 12): Model 1 <= 5 s, Model 2 <= 60 s, Model 2 table <= 64 KiB.
 2. Public benchmarks: our certified bounds at b0 (LB = alpha vectors, UB = sawtooth/FIB)
-   after the time a published solver needed (capped at --budget-cap), next to the published
-   figures. Published "reward" figures are simulated returns of the solver's policy (an
+   after the time a published solver needed (capped at --budget-cap), and the exact value of
+   the table compiled from them (the policy graph; following the witnesses alone, the compile
+   before issue 41, beside it), next to the published figures. Published "reward" figures are simulated returns of the solver's policy (an
    estimate of a value between our LB and V*), not bounds; their times are on the authors'
    2003-2008 machines.
 Each problem runs in its own process so its peak RSS (ru_maxrss) is its own.
@@ -122,6 +123,7 @@ def bench_model(name: str, repeat: int) -> dict:
 
 
 def bench_problem(name: str, cap: float) -> dict:
+    from monitor.offline.controller import compile_controller
     from monitor.offline.pipeline import gap_percent
     from monitor.offline.solver import SolverSettings, solve
 
@@ -131,6 +133,9 @@ def bench_problem(name: str, cap: float) -> dict:
     times = [p[2] for p in PUBLISHED[name] if p[2] is not None]
     budget = min(cap, min(times)) if times else min(cap, 5.0)
     sol = solve(model, SolverSettings(time_budget_s=budget, target_gap=1e-3, max_iterations=10**6, max_beliefs=400))
+    t0 = time.perf_counter()
+    comp = compile_controller(model, sol)
+    compile_s = time.perf_counter() - t0
     S, A, Z = model.shape
     return {
         "problem": name, "title": model.name, "states": S, "actions": A, "observations": Z, "budget_s": budget,
@@ -138,6 +143,8 @@ def bench_problem(name: str, cap: float) -> dict:
         "solver_gap_percent": gap_percent(sol.upper_bound, sol.lower_bound), "stop_reason": sol.stop_reason,
         "trials": sol.iterations, "alphas": int(len(sol.alphas)), "upper_points": sol.upper.size,
         "fib_at_b0": float((sol.upper_q @ model.b0).max()), "peak_rss_mb": peak_rss_mb(),
+        "table_value": comp.value, "table_nodes": comp.controller.nodes, "witness_table_value": comp.naive_value,
+        "compile_s": compile_s,
         "published": [dict(zip(("solver", "value", "seconds", "kind", "source"), p)) for p in PUBLISHED[name]],
         "optimum_within_bounds": all(sol.lower_bound - 1e-6 <= p[1] <= sol.upper_bound + 1e-6
                                      for p in PUBLISHED[name] if p[3] == "optimum"),
@@ -188,6 +195,8 @@ def main() -> None:
               f"peak RSS {r['peak_rss_mb']:.0f} MB")
         print(f"    ours (hsvi)  LB {r['lower_bound']:10.4f}   UB {r['upper_bound']:10.4f}   gap {r['solver_gap_percent']:.2f} %"
               f"   (FIB {r['fib_at_b0']:.4f}, {r['alphas']} alphas, {r['upper_points']} UB points)")
+        print(f"    ours (table) {r['table_value']:10.4f}   exact value of the compiled table, {r['table_nodes']} nodes, "
+              f"compiled in {r['compile_s']:.1f} s (following the witnesses alone: {r['witness_table_value']:.4f})")
         if any(p["kind"] == "optimum" for p in r["published"]):
             print(f"    published optimum within our certified bounds: {'yes' if r['optimum_within_bounds'] else 'NO'}")
         for p in r["published"]:

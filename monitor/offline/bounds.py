@@ -346,12 +346,13 @@ def upper_backup(dyn: Dynamics, ub: UpperBound, b: np.ndarray, sig: float = 1.0)
 
 
 def lower_backup(dyn: Dynamics, alphas: np.ndarray, b: np.ndarray, joints: list):
-    """Point-based Bellman backup of the alpha vectors at b: (vector, action, value, lower joints).
+    """Point-based Bellman backup of the alpha vectors at b: (vector, action, value, lower
+    joints, the vector chosen per observation for that action).
 
     For each action the observation's best vector is the argmax of alpha . U[o]; the new
     vector is R_a + g T_a (sum_o O[a, :, o] * alpha_{k_o}). Ties go to the later action.
     """
-    best = (None, -1, -np.inf)
+    best = (None, -1, -np.inf, None)
     lj = []
     for a in range(dyn.A):
         scores = joints[a] @ alphas.T                       # (Z, K)
@@ -361,5 +362,5 @@ def lower_backup(dyn: Dynamics, alphas: np.ndarray, b: np.ndarray, joints: list)
         vec = dyn.R[a] + dyn.g * dyn.back(a, W)
         val = float(b @ vec)
         if val >= best[2] - 1e-12 * max(1.0, abs(best[2])):
-            best = (vec, a, val)
-    return best[0], best[1], best[2], lj
+            best = (vec, a, val, pick)
+    return best[0], best[1], best[2], lj, best[3]

@@ -22,6 +22,7 @@ import numpy as np
 
 from .bounds import (Dynamics, UpperBound, fast_informed_q, lower_backup, single_threaded_blas, truncate,
                      upper_backup)
+from .policy_graph import PolicyGraph
 from .pomdp import POMDP
 
 METHODS = ("hsvi", "perseus", "pbvi")
@@ -88,6 +89,8 @@ class Solution:
     beliefs: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # improvement points for the compiler
     history: list = field(default_factory=list)
     upper: Optional[UpperBound] = None   # corners + sawtooth points (+ FIB)
+    graph: Optional[PolicyGraph] = None  # HSVI: every backup as a node (policy_graph.py)
+    graph_nodes: Optional[np.ndarray] = None   # (K,) each alpha vector's node in `graph`
 
     @property
     def gap(self) -> float:
@@ -160,15 +163,23 @@ def solve(
 # ----------------------------------------------------------------------------- HSVI
 
 class LowerBound:
-    """Alpha vectors with actions and witnesses in growable arrays."""
+    """Alpha vectors with actions, witnesses and their nodes in the policy graph (the blind
+    vectors' nodes stay in place), in growable arrays."""
 
-    def __init__(self, alphas: np.ndarray, actions: np.ndarray, witnesses: np.ndarray):
+    def __init__(self, alphas: np.ndarray, actions: np.ndarray, witnesses: np.ndarray, observations: int):
         self.n = len(alphas)
         cap = max(64, 2 * self.n)
         S = alphas.shape[1]
         self._a = np.zeros((cap, S)); self._a[: self.n] = alphas
         self._w = np.zeros((cap, S)); self._w[: self.n] = witnesses
         self._act = np.zeros(cap, dtype=np.int64); self._act[: self.n] = actions
+        self.graph = PolicyGraph(observations)
+        self._node = np.zeros(cap, dtype=np.int64)
+        self._node[: self.n] = [self.graph.add(int(a)) for a in actions]
+
+    @property
+    def nodes(self) -> np.ndarray:
+        return self._node[: self.n]
 
     @property
     def alphas(self) -> np.ndarray:
@@ -185,12 +196,15 @@ class LowerBound:
     def value(self, b: np.ndarray) -> float:
         return float((self.alphas @ b).max())
 
-    def add(self, vec: np.ndarray, action: int, witness: np.ndarray) -> None:
+    def add(self, vec: np.ndarray, action: int, witness: np.ndarray, pick: np.ndarray) -> None:
+        """A backed-up vector; `pick` (Z,) the vectors (indices now) its backup chose."""
         if self.n == len(self._a):
             self._a = np.vstack([self._a, np.zeros_like(self._a)])
             self._w = np.vstack([self._w, np.zeros_like(self._w)])
             self._act = np.concatenate([self._act, np.zeros_like(self._act)])
+            self._node = np.concatenate([self._node, np.zeros_like(self._node)])
         self._a[self.n], self._act[self.n], self._w[self.n] = vec, action, witness
+        self._node[self.n] = self.graph.add(action, self.nodes[pick])
         self.n += 1
 
     def prune(self, points: np.ndarray) -> int:
@@ -199,9 +213,9 @@ class LowerBound:
         best = np.unique((X @ self.alphas.T).argmax(axis=1))
         dropped = self.n - len(best)
         if dropped:
-            a, w, act = self.alphas[best], self.witnesses[best], self.actions[best]
+            a, w, act, node = self.alphas[best], self.witnesses[best], self.actions[best], self.nodes[best]
             self.n = len(best)
-            self._a[: self.n], self._w[: self.n], self._act[: self.n] = a, w, act
+            self._a[: self.n], self._w[: self.n], self._act[: self.n], self._node[: self.n] = a, w, act, node
         return dropped
 
 
@@ -210,9 +224,9 @@ def backup_at(dyn: Dynamics, ub: UpperBound, lb: LowerBound, b: np.ndarray):
     p(o)-weighted successor values, per action)."""
     q, joints, uj = upper_backup(dyn, ub, b, SIGNIFICANT)
     ub.add(b, float(q.max()))
-    vec, act, val, lj = lower_backup(dyn, lb.alphas, b, joints)
+    vec, act, val, lj, pick = lower_backup(dyn, lb.alphas, b, joints)
     if val > lb.value(b) + 1e-12 * max(1.0, abs(val)):
-        lb.add(vec, act, b)
+        lb.add(vec, act, b, pick)
     return q, joints, uj, lj
 
 
@@ -251,9 +265,9 @@ def lower_sweep(dyn: Dynamics, lb: LowerBound, beliefs: np.ndarray, clock: Clock
         if clock.over():
             break
         joints = [dyn.joint(b, a) for a in range(dyn.A)]
-        vec, act, val, _ = lower_backup(dyn, lb.alphas, b, joints)
+        vec, act, val, _, pick = lower_backup(dyn, lb.alphas, b, joints)
         if val > lb.value(b) + 1e-12 * max(1.0, abs(val)):
-            lb.add(vec, act, b)
+            lb.add(vec, act, b, pick)
             added += 1
     return added
 
@@ -272,7 +286,7 @@ def hsvi(model: POMDP, settings: SolverSettings, progress, clock: Clock) -> Solu
     Q = fast_informed_q(dyn, deadline=clock.stop, clock=clock.now)
     ub = UpperBound(Q)
     b0 = model.b0
-    lb = LowerBound(blind_policy_alphas(model), np.arange(A), np.tile(b0, (A, 1)))
+    lb = LowerBound(blind_policy_alphas(model), np.arange(A), np.tile(b0, (A, 1)), model.shape[2])
     history: list[Progress] = []
     lower, upper = lb.value(b0), float(ub.value(b0[None, :])[0])
     stop_reason, it, last = "max_iterations", 0, (lower, upper)
@@ -311,6 +325,7 @@ def hsvi(model: POMDP, settings: SolverSettings, progress, clock: Clock) -> Solu
         alphas=lb.alphas.copy(), actions=lb.actions.copy(), witnesses=lb.witnesses.copy(), upper_q=Q,
         lower_bound=lower, upper_bound=upper, iterations=it, seconds=clock.elapsed(), stop_reason=stop_reason,
         beliefs=compiler_points(b0, ub, lb, settings.max_beliefs), history=history, upper=ub,
+        graph=lb.graph, graph_nodes=lb.nodes.copy(),
     )
 
 
