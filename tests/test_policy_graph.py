@@ -7,6 +7,7 @@ value (1 s solve: lower bound 18.67, table 14.18; 3 s: 18.87 and 0.0).
 """
 from __future__ import annotations
 
+import json
 import sys
 
 import numpy as np
@@ -76,3 +77,45 @@ def test_a_graph_over_the_budget_is_not_compiled_and_says_why(rocksample):
     model, sol = rocksample
     ctrl, why = graph_controller(model, sol, max_nodes=2)
     assert ctrl is None and "over 8 x the budget" in why
+
+
+# ------------------------------------------------------------- the compilation loss, shown (item 3)
+
+def _railguard(*args: str):
+    import subprocess
+
+    return subprocess.run([sys.executable, "-m", "railguard", *args], capture_output=True, text=True, cwd=ROOT,
+                          timeout=600)
+
+
+def test_table_show_gives_the_value_on_the_lower_bound_s_objective_and_the_loss():
+    """m2's table pays its release cost on top of what the alpha vectors optimise: `table
+    show` gives the value without it beside the header's lower bound, and the loss between
+    the two, as the JSON's figures say (recomputed here from the definition)."""
+    from monitor.core.table import decode
+    from monitor.offline.models import rebuild
+    from railguard.setup import table_bytes
+
+    table = decode(table_bytes("m2"))
+    model = rebuild(dict(table.header))
+    assert model.release_cost > 0
+    shown = json.loads(_railguard("table", "show", "m2", "--json").stdout)
+    plain, loss = shown["controller_value_without_release_cost"], shown["compilation_loss_percent"]
+    lower = table.header["lower_bound"]
+    assert plain > table.header["controller_value"]          # no release paid: worth more
+    assert loss == pytest.approx(100 * (lower - plain) / abs(lower)) and loss > 0
+    text = _railguard("table", "show", "m2").stdout
+    assert f"compilation      {plain:.4f}" in text and f"{loss:.2f} % below the lower bound" in text
+    assert f"pays {model.release_cost:g} per release" in text
+
+
+def test_solve_json_names_both_values_and_a_model_without_release_cost_has_one(tmp_path):
+    res = _railguard("solve", "--pomdp", str(ROOT / "examples" / "tiger.pomdp"), "--time-budget", "5", "--json",
+                     "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr[-2000:]
+    f = json.loads(res.stdout)
+    assert f["release_cost"] == 0 and f["controller_value_without_release_cost"] == pytest.approx(f["controller_value"])
+    assert f["compilation_loss_percent"] == pytest.approx(
+        100 * (f["lower_bound"] - f["controller_value"]) / abs(f["lower_bound"]))
+    assert f["compilation_loss_percent"] <= 1e-9                 # the policy graph: at least the lower bound
+    assert "compilation " in (tmp_path / "tiger.summary.txt").read_text()

@@ -190,6 +190,20 @@ def evaluate(model: POMDP, ctrl: Controller, tol: float = 1e-12, guess: Optional
     return v.reshape(N, S)
 
 
+def plain_value(model: POMDP, ctrl: Controller) -> float:
+    """The exact value at b0 on the objective the alpha vectors (and SARSOP) optimise: the
+    model's rewards without the release cost the table pays on top. The lower bound is
+    compared with this value, never with the table's own (issue 41: the compilation loss)."""
+    plain = replace(model, release_cost=0.0) if model.release_cost else model
+    return value_at(plain, ctrl, evaluate(plain, ctrl))
+
+
+def compilation_loss_percent(lower_bound: float, plain: float) -> float:
+    """How far below the alpha policy's guaranteed value (the lower bound at b0) the table is,
+    in % of |lower bound|, on the same objective; negative when the table is worth more."""
+    return 100.0 * (lower_bound - plain) / max(1e-12, abs(lower_bound))
+
+
 def value_at(model: POMDP, ctrl: Controller, V: np.ndarray) -> float:
     return float(V[ctrl.start] @ model.b0)
 

@@ -12,7 +12,7 @@ import numpy as np
 from .. import __version__
 from ..core import table as table_format
 from . import pomdp_file
-from .controller import Compiled, compile_controller
+from .controller import Compiled, compilation_loss_percent, compile_controller, plain_value
 from .layered import ConditionLayer, base_model, compile_monotone
 from .models import Plan, rebuild
 from .node_risk import describe as describe_risk
@@ -53,6 +53,7 @@ class Result:
     table: bytes
     seconds: float
     relaxed: Optional["RelaxedBound"] = None
+    plain_value: Optional[float] = None      # the table's value without the release cost (controller.plain_value)
 
     @property
     def sha256(self) -> str:
@@ -173,7 +174,8 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     step = time_step_of(model)
     data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist(),
                                node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
-    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed)
+    plain = plain_value(model, ctrl)
+    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain)
 
 
 def time_step_of(model: POMDP) -> float:
@@ -257,6 +259,10 @@ def figures(result: Result) -> dict:
         "certified_gap_percent": gap_percent(upper, comp.value),
         "controller_value": comp.value,
         "naive_controller_value": comp.naive_value,
+        "release_cost": result.model.release_cost,
+        "controller_value_without_release_cost": result.plain_value,
+        "compilation_loss_percent": (None if result.plain_value is None
+                                     else compilation_loss_percent(sol.lower_bound, result.plain_value)),
         "iterations": sol.iterations,
         "stop_reason": sol.stop_reason,
         "seconds": result.seconds,
@@ -265,6 +271,16 @@ def figures(result: Result) -> dict:
         "table_bytes": len(result.table),
         "sha256": result.sha256,
     }
+
+
+def compilation_lines(plain: Optional[float], release_cost: float, loss: Optional[float]) -> list[str]:
+    """The table's value on the lower bound's objective and the compilation loss, for a person
+    (the solve summary and `railguard table show`)."""
+    if plain is None or loss is None:
+        return []
+    paid = f"the value above pays {release_cost:g} per release; " if release_cost else ""
+    return [f"compilation      {plain:.4f}   ({paid}without release cost, the lower bound's objective: "
+            f"{abs(loss):.2f} % {'below' if loss > 0 else 'above'} the lower bound)"]
 
 
 def gap_percent(upper: float, value: float) -> float:
@@ -289,6 +305,7 @@ def summary_text(result: Result) -> str:
         f"lower bound      {f['lower_bound']:.4f}   (alpha vectors at the start belief)",
         f"upper bound      {f['upper_bound']:.4f}   ({describe_upper(own, result.relaxed and result.relaxed.entry(own))})",
         f"controller value {f['controller_value']:.4f}   (exact, {f['nodes']} nodes; witness-following before improvement: {f['naive_controller_value']:.4f})",
+        *compilation_lines(f["controller_value_without_release_cost"], f["release_cost"], f["compilation_loss_percent"]),
         f"remaining gap    {gap_to_ub:.4f}   (upper bound - controller value: {f['certified_gap_percent']:.2f} % of |upper bound|;"
         " the table is within this of the optimum)",
         f"table            {f['table_bytes']} bytes, sha256 {f['sha256']}",

@@ -112,7 +112,36 @@ def closed_loop(table: Table):
     return analyse(model, ctrl, time_step_of(model))
 
 
-def render(table: Table, max_observations: int = 6, full: bool = False, loop=None) -> str:
+def compilation(table: Table) -> dict:
+    """The table's value without the release cost and its compilation loss against the header's
+    lower bound (as `railguard solve --json` names them), on the model the table names,
+    rebuilt; {} for a hand-made table or one without a lower bound."""
+    from .controller import Controller, compilation_loss_percent, plain_value
+    from .models import rebuild
+    from .params import ConfigError
+
+    try:
+        model = rebuild(dict(table.header))
+    except (ConfigError, ValueError, KeyError):
+        return {}
+    if "lower_bound" not in table.header:
+        return {}
+    plain = plain_value(model, Controller.of_table(table))
+    return {"release_cost": model.release_cost, "controller_value_without_release_cost": plain,
+            "compilation_loss_percent": compilation_loss_percent(table.header["lower_bound"], plain)}
+
+
+def compilation_text(figures: dict) -> list[str]:
+    """compilation()'s figures as the solve summary prints them."""
+    from .pipeline import compilation_lines
+
+    if not figures:
+        return []
+    return compilation_lines(figures["controller_value_without_release_cost"], figures["release_cost"],
+                             figures["compilation_loss_percent"])
+
+
+def render(table: Table, max_observations: int = 6, full: bool = False, loop=None, extra: tuple = ()) -> str:
     """The table for a person: header, then a line per node. By default each line fits in
     WIDTH characters: with the closed loop's view (`loop`, closed_loop()) the next nodes
     likeliest first, else the transitions or their observation counts; `full` lists every
@@ -129,6 +158,7 @@ def render(table: Table, max_observations: int = 6, full: bool = False, loop=Non
             lines.append(f"{label:<16} {h[key]:.4f}")
     if "relaxation" in h and "upper_bound" in h:
         lines[-1] += f"   ({describe_upper(h['relaxation']['model_upper_bound'], h['relaxation'])})"
+    lines += list(extra)
     lines.append(f"{'risk':<16} {risk_range(table)}")
     info = h.get("risk", {})
     if "hazard" in info:

@@ -19,11 +19,12 @@ def show(args: argparse.Namespace) -> int:
         table = decode(table_bytes(args.file))
     else:
         table = table_view.read(args.file)
+    figures = table_view.compilation(table)
     if args.json:
-        print(json.dumps(table_view.as_json(table)))
+        print(json.dumps({**table_view.as_json(table), **figures}))
     else:
         loop = None if args.full else table_view.closed_loop(table)
-        sys.stdout.write(table_view.render(table, full=args.full, loop=loop))
+        sys.stdout.write(table_view.render(table, full=args.full, loop=loop, extra=table_view.compilation_text(figures)))
     return 0
 
 
