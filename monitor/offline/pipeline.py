@@ -174,7 +174,7 @@ def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]]
     step = time_step_of(model)
     data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist(),
                                node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
-    plain = plain_value(model, ctrl)
+    plain = plain_value(model, ctrl) if model.release_cost else comp.value     # (no release cost: the same value)
     return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain)
 
 
