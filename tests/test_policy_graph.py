@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from conftest import ROOT, independent_values
-from monitor.offline.controller import compile_controller, graph_controller
+from monitor.offline.controller import compile_controller, evaluate, graph_controller, value_at
 from monitor.offline.policy_graph import PolicyGraph
 from monitor.offline.solver import SolverSettings, solve
 
@@ -44,14 +45,16 @@ def test_a_graph_whose_edges_are_not_the_backups_choices_is_caught(tiger_solved,
 
 
 def test_closure_renumbers_from_the_start_and_keeps_only_what_it_reaches():
-    g = PolicyGraph(2)
-    blind = g.add(0)                                      # stays in itself
-    unused = g.add(1)
-    a = g.add(1, np.array([blind, blind]))
-    b = g.add(0, np.array([a, blind]))
+    g = PolicyGraph(2, 3)
+    v, w = np.zeros(3), np.full(3, 1 / 3)
+    blind = g.add(0, None, v, w)                          # stays in itself
+    unused = g.add(1, None, v, w)
+    a = g.add(1, np.array([blind, blind]), v + 1, w)
+    b = g.add(0, np.array([a, blind]), v + 2, w)
     action, nxt, ids = g.closure(b)
     assert ids.tolist() == [b, blind, a] and unused not in ids.tolist()     # breadth first, lower ids first
     assert action.tolist() == [0, 0, 1] and nxt.tolist() == [[2, 1], [1, 1], [1, 1]]
+    assert g.vectors(ids)[:, 0].tolist() == [2, 0, 1]       # each node keeps its vector
 
 
 @pytest.fixture(scope="module")
@@ -73,10 +76,29 @@ def test_the_compiled_table_is_worth_the_lower_bound_on_rocksample(rocksample):
     assert any("policy graph" in line for line in said)
 
 
-def test_a_graph_over_the_budget_is_not_compiled_and_says_why(rocksample):
+def test_a_graph_over_the_budget_keeps_the_nodes_whose_loss_costs_most():
+    """m2 (144 states) after 15 deterministic HSVI iterations: a graph of about 1,800 nodes.
+    Cut to 64 nodes by visits it kept only the busy no-brake nodes and never braked (-17.0);
+    chosen by visits x value lost (select_nodes) it is worth at least the lower bound."""
+    from monitor.offline.models import MODELS
+
+    spec = MODELS["m2"]
+    model = replace(spec.build(spec.params), release_cost=0.0)       # the lower bound's objective
+    sol = solve(model, replace(spec.plan.settings, max_iterations=15, time_budget_s=1e9))
+    start = sol.graph_nodes[int((sol.alphas @ model.b0).argmax())]
+    assert len(sol.graph.closure(int(start))[0]) > 1000
+    ctrl, why = graph_controller(model, sol, max_nodes=64)
+    assert why == "" and ctrl.nodes <= 64 and len(np.unique(ctrl.action)) > 1
+    assert value_at(model, ctrl, evaluate(model, ctrl)) >= sol.lower_bound
+
+
+def test_a_graph_too_large_to_choose_from_is_not_compiled_and_says_why(rocksample, monkeypatch):
+    import monitor.offline.controller as controller
+
     model, sol = rocksample
+    monkeypatch.setattr(controller, "GRAPH_PAIRS_LIMIT", 801 * 10)
     ctrl, why = graph_controller(model, sol, max_nodes=2)
-    assert ctrl is None and "over 8 x the budget" in why
+    assert ctrl is None and "over 8,010 (node, state) pairs: not used" in why
 
 
 # ------------------------------------------------------------- the compilation loss, shown (item 3)
@@ -119,3 +141,30 @@ def test_solve_json_names_both_values_and_a_model_without_release_cost_has_one(t
         100 * (f["lower_bound"] - f["controller_value"]) / abs(f["lower_bound"]))
     assert f["compilation_loss_percent"] <= 1e-9                 # the policy graph: at least the lower bound
     assert "compilation " in (tmp_path / "tiger.summary.txt").read_text()
+
+
+def test_a_layered_table_is_built_from_every_base_and_the_best_kept():
+    """m2's monotone compile layers both bases the compiler may start from (the re-pointed
+    witnesses and the policy graph) when no deadline stops it, improves each, and keeps the
+    table worth most; the progress names both, and the kept table is monotone."""
+    from monitor.core import table as table_format
+    from monitor.offline.layered import ConditionLayer, base_model, compile_monotone
+    from monitor.offline.models import MODELS
+    from verification.monotone import check as monotone_check
+
+    spec = MODELS["m2"]
+    model = spec.build(spec.params)
+    layer = ConditionLayer.of(model.observations, spec.plan.conditions)
+    sol = solve(base_model(model, layer), replace(spec.plan.settings, max_iterations=12, time_budget_s=1e9))
+    said: list[str] = []
+    comp = compile_monotone(model, sol, layer, max_nodes=64, rounds=2, progress=said.append)
+    finals = [float(line.rsplit(" ", 1)[1]) for line in said if line.startswith("monotone: final controller from")]
+    assert any("from the witnesses layered" in line for line in said)
+    assert any("from the policy graph layered" in line for line in said)
+    assert len(finals) == 2 and comp.value == pytest.approx(max(finals), abs=1e-4)
+    assert comp.value == pytest.approx(value_at(model, comp.controller, evaluate(model, comp.controller)), abs=1e-9)
+    t = table_format.encode({"format": "railguard-table", "model": model.name, "states": list(model.states),
+                             "actions": list(model.actions), "observations": list(model.observations),
+                             "start": comp.controller.start}, comp.controller.action.tolist(),
+                            comp.controller.next.tolist())
+    assert monotone_check(table_format.decode(t)).monotone

@@ -127,8 +127,6 @@ class EdgeWeights:
     dst: np.ndarray     # (L,) next node m
     w: np.ndarray       # (L, S)
     src_starts: np.ndarray  # reduceat offsets of each node's pairs
-    by_dst: np.ndarray  # permutation sorting pairs by dst
-    dst_starts: np.ndarray
 
     @staticmethod
     def of(model: POMDP, ctrl: Controller) -> "EdgeWeights":
@@ -142,9 +140,7 @@ class EdgeWeights:
             dst.append(targets)
             w.append(wn)
         src_a, dst_a = np.concatenate(src), np.concatenate(dst)
-        by_dst = np.argsort(dst_a, kind="stable")
-        return EdgeWeights(src_a, dst_a, np.vstack(w), np.flatnonzero(np.r_[True, src_a[1:] != src_a[:-1]]),
-                           by_dst, np.flatnonzero(np.r_[True, np.diff(dst_a[by_dst]) != 0]))
+        return EdgeWeights(src_a, dst_a, np.vstack(w), np.flatnonzero(np.r_[True, src_a[1:] != src_a[:-1]]))
 
 
 def _by_action(model: POMDP, ctrl: Controller, X: np.ndarray, transpose: bool) -> np.ndarray:
@@ -222,12 +218,10 @@ def occupancy(model: POMDP, ctrl: Controller, iterations: int = 80, guess: Optio
     e = np.zeros((N, S))
     e[ctrl.start] = model.b0
     x = e.copy() if guess is None else guess
-    targets = E.dst[E.by_dst][E.dst_starts]
+    into = sp.csr_matrix((np.full(len(E.dst), model.discount), (E.dst, np.arange(len(E.dst)))), shape=(N, len(E.dst)))
     for _ in range(iterations):
         Y = _by_action(model, ctrl, x, transpose=False)           # mass after moving, (N, S')
-        flow = (Y[E.src] * E.w)[E.by_dst]
-        last, x = x, e.copy()
-        x[targets] += model.discount * np.add.reduceat(flow, E.dst_starts, axis=0)
+        last, x = x, e + into @ (Y[E.src] * E.w)
         if guess is not None and np.abs(x - last).max() <= 1e-4 * np.abs(x).max():
             break
     return x
@@ -283,47 +277,77 @@ def backup_nodes(model: POMDP, V: np.ndarray, beliefs: np.ndarray,
 
 def follow_witnesses(model: POMDP, sol: Solution) -> Controller:
     """Node k acts as alpha k; on observation o go to the best alpha at tau(witness_k, a_k, o)."""
-    Z = model.shape[2]
-    nxt = np.zeros((len(sol.alphas), Z), dtype=np.int64)
-    for a in np.unique(sol.actions):
-        idx = np.flatnonzero(sol.actions == a)
-        _, nxt[idx] = lookahead(model, sol.alphas, sol.witnesses[idx], int(a), sol.actions)
     start = int((sol.alphas @ model.b0).argmax())
-    return Controller(sol.actions.astype(np.int64), nxt, start, sol.witnesses)
+    ctrl = Controller(sol.actions.astype(np.int64), np.zeros((len(sol.alphas), model.shape[2]), dtype=np.int64),
+                      start, sol.witnesses)
+    return replace(ctrl, next=lookahead_all(model, sol.alphas, ctrl)[1])
 
 
-# the policy graph is compiled only while it is at most this many times the node budget: the
-# graph of every backup grows with the run (m2's base, 20 s: 9,747 nodes, 89 s for one exact
-# evaluation, and a cut to 127 nodes would keep little of it)
-GRAPH_OVER_BUDGET = 8
+# the policy graph is compiled only while its closure has at most this many (node, state)
+# pairs: choosing its nodes needs the visits of each (m2's full model, 30 s: 10,969 nodes x
+# 144 states, 18 s of occupancy)
+GRAPH_PAIRS_LIMIT = 4_000_000
 
 
 def graph_controller(model: POMDP, sol: Solution, max_nodes: int) -> tuple[Optional[Controller], str]:
     """The solver's policy graph from the node of the best vector at b0 (policy_graph.py: worth
-    at least the lower bound there), merged; beyond `max_nodes`, its most visited nodes kept
-    (the cut re-points the rest at the beliefs the nodes are visited with). (None, why) if
-    the solver keeps no graph or it is too large to compile."""
+    at least the lower bound there), merged; beyond `max_nodes`, the nodes whose loss would
+    cost most kept (select_nodes) and edges into the others re-pointed by the nodes' vectors.
+    (None, why) if the solver keeps no graph or it is too large to compile."""
     if sol.graph is None or sol.graph_nodes is None:
         return None, "this solver method keeps none"
     start = sol.graph_nodes[int((sol.alphas @ model.b0).argmax())]
-    action, nxt, _ = sol.graph.closure(int(start))
-    if len(action) > GRAPH_OVER_BUDGET * max_nodes:
-        return None, f"{len(action)} nodes, over {GRAPH_OVER_BUDGET} x the budget: not used"
-    ctrl = minimise(Controller(action, nxt, 0))
-    ctrl = replace(ctrl, beliefs=node_beliefs(model, ctrl)[0])
-    if ctrl.nodes > max_nodes:
-        ctrl = minimise(reachable(cut(model, ctrl, evaluate(model, ctrl), max_nodes)))
-        ctrl = replace(ctrl, beliefs=node_beliefs(model, ctrl)[0])
-    return ctrl, ""
+    action, nxt, ids = sol.graph.closure(int(start))
+    if len(action) * model.shape[0] > GRAPH_PAIRS_LIMIT:
+        return None, f"{len(action)} nodes, over {GRAPH_PAIRS_LIMIT:,} (node, state) pairs: not used"
+    ctrl = Controller(action, nxt, 0)
+    if len(action) > max_nodes:
+        ctrl = select_nodes(model, ctrl, sol.graph.vectors(ids), sol.graph.witnesses(ids), max_nodes)
+    ctrl = minimise(ctrl)
+    return replace(ctrl, beliefs=node_beliefs(model, ctrl)[0]), ""
+
+
+def select_nodes(model: POMDP, ctrl: Controller, vectors: np.ndarray, witnesses: np.ndarray,
+                 max_nodes: int) -> Controller:
+    """At most `max_nodes` nodes of a policy graph, chosen greedily: each node stands for the
+    belief it is visited with (its witness if never visited), and the next node kept is the
+    one whose visits x (its vector's value there - the best kept vector's value there) is
+    largest. Edges into dropped nodes go to the kept node whose vector is best at the
+    successor belief. Cutting by visits alone keeps only the busy no-brake nodes (m2: a
+    table that never brakes, -17.0 against a lower bound of -0.15)."""
+    beliefs, mass = node_beliefs(model, ctrl)
+    beliefs = np.where(mass[:, None] > 1e-9, beliefs, witnesses)
+    own = np.einsum("ns,ns->n", vectors, beliefs)
+    keep, best = [ctrl.start], beliefs @ vectors[ctrl.start]
+    while len(keep) < max_nodes:
+        loss = mass * (own - best)
+        n = int(np.argmax(loss))
+        if loss[n] <= 1e-12 * max(1.0, abs(float(own[n]))):
+            break
+        keep.append(n)
+        best = np.maximum(best, beliefs @ vectors[n])
+    keep = np.sort(np.array(keep, dtype=np.int64))
+    remap = np.full(ctrl.nodes, -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    kept = Controller(ctrl.action[keep], ctrl.next[keep], int(remap[ctrl.start]), beliefs[keep])
+    _, repointed = lookahead_all(model, vectors[keep], kept)
+    stay = remap[kept.next] >= 0
+    return reachable(replace(kept, next=np.where(stay, remap[kept.next], repointed)))
+
+
+def lookahead_all(model: POMDP, V: np.ndarray, ctrl: Controller) -> tuple[np.ndarray, np.ndarray]:
+    """At each node's belief, acting as the node does: (one-step value on V (N,), the best
+    next node per observation (N, Z))."""
+    value, nxt = np.zeros(ctrl.nodes), ctrl.next.copy()
+    for a in np.unique(ctrl.action):
+        idx = np.flatnonzero(ctrl.action == a)
+        value[idx], nxt[idx] = lookahead(model, V, ctrl.beliefs[idx], int(a), ctrl.action)
+    return value, nxt
 
 
 def repoint(model: POMDP, ctrl: Controller, V: np.ndarray) -> Controller:
     """Every edge to the node with the best exact value at its node's successor belief."""
-    nxt = ctrl.next.copy()
-    for a in np.unique(ctrl.action):
-        idx = np.flatnonzero(ctrl.action == a)
-        _, nxt[idx] = lookahead(model, V, ctrl.beliefs[idx], int(a), ctrl.action)
-    return replace(ctrl, next=nxt, start=int((V @ model.b0).argmax()))
+    return replace(ctrl, next=lookahead_all(model, V, ctrl)[1], start=int((V @ model.b0).argmax()))
 
 
 def reachable(ctrl: Controller) -> Controller:
@@ -422,34 +446,51 @@ def out_of_time(deadline: Optional[float]) -> bool:
     return deadline is not None and time.perf_counter() >= deadline
 
 
-def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds: int = 12,
-                       progress: Optional[Callable[[str], None]] = None, deadline: Optional[float] = None) -> Compiled:
-    """Witness-following controller, improved by point-based policy iteration within the
-    node budget; every round is kept only if the exact value at b0 rises. `progress`
-    receives one line per step. No new round starts after `deadline` (time.perf_counter()):
-    the best controller so far is kept, so a time budget bounds the compilation too."""
-    say = progress or (lambda text: None)
+@dataclass(frozen=True)
+class Candidate:
+    """A controller the compiler may start from, with its exact values and how it was made."""
+
+    value: float
+    controller: Controller
+    values: np.ndarray
+    origin: str
+
+
+def candidates(model: POMDP, sol: Solution, max_nodes: int, say: Callable[[str], None]) -> tuple[list[Candidate], float]:
+    """The controllers compilation starts from, best first: the witness-following controller
+    re-pointed within the budget (or tidied, when it fits and is worth more), and the solver's
+    policy graph within the budget (graph_controller); and the witness controller's value."""
     naive = follow_witnesses(model, sol)
     naive_V = evaluate(model, naive)
     naive_value = value_at(model, naive, naive_V)
     say(f"compile: witness controller, {naive.nodes} nodes, exact value {naive_value:.4f}")
     ctrl, V = settle(model, naive, max_nodes)
-    best = (value_at(model, ctrl, V), ctrl, V)
-    say(f"compile: re-pointed within {max_nodes} nodes: {ctrl.nodes} nodes, exact value {best[0]:.4f}")
-    if naive.nodes <= max_nodes and naive_value > best[0]:
+    found = [Candidate(value_at(model, ctrl, V), ctrl, V, "witnesses")]
+    say(f"compile: re-pointed within {max_nodes} nodes: {ctrl.nodes} nodes, exact value {found[0].value:.4f}")
+    if naive.nodes <= max_nodes and naive_value > found[0].value:
         # pruning and merging keep the value exactly: the witness controller, tidied, is the start
         tidy = minimise(reachable(naive))
         tidy_V = evaluate(model, tidy)
-        best = (value_at(model, tidy, tidy_V), tidy, tidy_V)
+        found[0] = Candidate(value_at(model, tidy, tidy_V), tidy, tidy_V, "witnesses")
     graph, why = graph_controller(model, sol, max_nodes)
     if graph is None:
         say(f"compile: the solver's policy graph: {why}")
     else:
         graph_V = evaluate(model, graph)
-        graph_value = value_at(model, graph, graph_V)
-        say(f"compile: the solver's policy graph, {graph.nodes} nodes, exact value {graph_value:.4f}")
-        if graph_value > best[0]:
-            best = (graph_value, graph, graph_V)
+        found.append(Candidate(value_at(model, graph, graph_V), graph, graph_V, "policy graph"))
+        say(f"compile: the solver's policy graph, {graph.nodes} nodes, exact value {found[-1].value:.4f}")
+    return sorted(found, key=lambda c: -c.value), naive_value
+
+
+def compile_controller(model: POMDP, sol: Solution, max_nodes: int = 255, rounds: int = 12,
+                       progress: Optional[Callable[[str], None]] = None, deadline: Optional[float] = None) -> Compiled:
+    """The best of the candidates, improved by point-based policy iteration within the
+    node budget; every round is kept only if the exact value at b0 rises. `progress`
+    receives one line per step. No new round starts after `deadline` (time.perf_counter()):
+    the best controller so far is kept, so a time budget bounds the compilation too."""
+    say = progress or (lambda text: None)
+    found, naive_value = candidates(model, sol, max_nodes, say)
+    best = (found[0].value, found[0].controller, found[0].values)
     done = 0
     for done in range(1, rounds + 1):
         if out_of_time(deadline):

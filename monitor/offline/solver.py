@@ -173,9 +173,9 @@ class LowerBound:
         self._a = np.zeros((cap, S)); self._a[: self.n] = alphas
         self._w = np.zeros((cap, S)); self._w[: self.n] = witnesses
         self._act = np.zeros(cap, dtype=np.int64); self._act[: self.n] = actions
-        self.graph = PolicyGraph(observations)
+        self.graph = PolicyGraph(observations, S)
         self._node = np.zeros(cap, dtype=np.int64)
-        self._node[: self.n] = [self.graph.add(int(a)) for a in actions]
+        self._node[: self.n] = [self.graph.add(int(a), None, v, w) for a, v, w in zip(actions, alphas, witnesses)]
 
     @property
     def nodes(self) -> np.ndarray:
@@ -204,7 +204,7 @@ class LowerBound:
             self._act = np.concatenate([self._act, np.zeros_like(self._act)])
             self._node = np.concatenate([self._node, np.zeros_like(self._node)])
         self._a[self.n], self._act[self.n], self._w[self.n] = vec, action, witness
-        self._node[self.n] = self.graph.add(action, self.nodes[pick])
+        self._node[self.n] = self.graph.add(action, self.nodes[pick], vec, witness)
         self.n += 1
 
     def prune(self, points: np.ndarray) -> int:
