@@ -31,7 +31,7 @@ REALTIME_MODULES = frozenset({"test_can_flood", "test_can_realbus", "test_can_ru
 # `--dist loadfile` hands out modules in collection order (with --no-loadscope-reorder,
 # pyproject.toml; by default it orders them by their number of tests), and a long one handed
 # out last finishes alone while the other worker idles
-# test_relaxation last of them: in the realtime phase (two modules at a time) its 60 s m2 solve
+# test_relaxation last of them: in the realtime phase (two modules at a time) its 90 s m2 solve
 # is then handed out first, beside the vcan sandbox sessions, instead of after them
 LONGEST_FIRST = ("test_proof", "test_mutation", "test_physics", "test_evaluate", "test_verify", "test_relaxation")
 

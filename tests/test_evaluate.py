@@ -346,6 +346,12 @@ def test_the_report_part_judges_the_runs_users_make(evaluated, tmp_path, monkeyp
     failed = [(c.name, c.figure) for c in sec.checks if not c.passed]
     assert len(sec.checks) >= 4 and not failed, failed
     assert "### m1 (" in sec.markdown and "### m2 (" in sec.markdown
+    # issue 41: both values of each shipped table, as `table show --json` gives them
+    for name in ("m1", "m2"):
+        shown = json.loads(railguard("table", "show", name, "--json").stdout)
+        assert (f"{shown['controller_value_without_release_cost']:.4f} without it" in sec.markdown
+                and f"{abs(shown['compilation_loss_percent']):.2f} % " in sec.markdown), name
+    assert "-0.2051 with the release cost (2 per release" in sec.markdown
 
 
 @pytest.mark.parametrize("name", ["m1", "m2"])

@@ -135,6 +135,15 @@ def test_calibration_says_calibrated_only_when_it_is_and_which_way_it_misses():
         wrong = [x for x in cal.bins(np.clip(risk * scale, 0, 1), label) if x.cycles >= cal.MIN_CYCLES]
         assert cal.verdict(wrong, [x for x in wrong if not x.inside], True) == word
     assert cal.verdict(judged, [], False) == "no hazard in the world"
+    # the pooled bias (issue 41 item 6) names the size: 1 for the truth, about 10 for a column
+    # ten times too low, which decides the verdict even when no bin is judged missed
+    truth = cal.pooled_bias(risk, label)
+    assert truth.holds_one and abs(truth.ratio - 1) < 0.05
+    low = cal.pooled_bias(risk * 0.1, label)
+    assert not low.holds_one and 9.5 < low.ratio < 10.5 and "x the column's prediction (95 %: " in low.describe()
+    assert cal.verdict(judged, [], True, low) == "uncalibrated: optimistic"
+    assert cal.verdict(judged, [], True, cal.pooled_bias(risk * 10, label)) == "uncalibrated: conservative"
+    assert cal.verdict(judged, [], True, truth) == "calibrated"
     score, base = cal.brier(risk, label)
     assert score < base                                   # the true probabilities beat the base rate
 

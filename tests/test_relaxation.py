@@ -90,19 +90,20 @@ def test_no_relaxation_is_started_without_time_left(m2):
 
 
 # a wall-clock budget: under another test's load the compile leaves the relaxation no time. The
-# realtime phase runs two modules at a time, so the budget is 60 s (at 30 s one of three fresh-
-# clone CI runs had the compile end too late, beside the vcan sandbox sessions)
+# realtime phase runs two modules at a time, so the budget is 90 s (at 30 s one of three fresh-
+# clone CI runs had the compile end too late, beside the vcan sandbox sessions; the relaxation
+# has 70 % to 85 % of the budget since issue 41 gave compilation more of it: 13.5 s here)
 @pytest.mark.realtime
 def test_solve_m2_as_users_run_it_prints_the_tighter_bound(tmp_path):
     """`railguard solve --model m2` in a subprocess: the upper bound printed and written is the
     smaller of the model's own and the relaxation's, and the relaxation is named."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-m", "railguard", "solve", "--model", "m2", "--time-budget", "60",
+    proc = subprocess.run([sys.executable, "-m", "railguard", "solve", "--model", "m2", "--time-budget", "90",
                            "--json", "--out", str(tmp_path)], capture_output=True, text=True, cwd=ROOT, env=env,
                           timeout=300)
     assert proc.returncode == 0, proc.stderr
     fig = json.loads(proc.stdout)
-    assert fig["relaxation_upper_bound"] is not None, "60 s left no time for the relaxation"
+    assert fig["relaxation_upper_bound"] is not None, "90 s left no time for the relaxation"
     assert fig["upper_bound"] == min(fig["model_upper_bound"], fig["relaxation_upper_bound"])
     assert fig["lower_bound"] <= fig["upper_bound"] and fig["controller_value"] <= fig["upper_bound"]
     header = table_format.decode((tmp_path / "m2.table.rgt").read_bytes(), expect_model="m2").header

@@ -12,18 +12,26 @@ speed, not on what the monitor saw.
   the independent units (a hazard window spans 300 overlapping cycles of one train).
 - **Brier score** of the cycles, beside the Brier score of always predicting the observed
   base rate (its skill score says whether the column knows more than the base rate).
-- **Verdict**: "calibrated" when every bin with at least MIN_CYCLES cycles holds its mean
-  prediction inside its interval; otherwise uncalibrated, and which way: "uncalibrated:
-  conservative" (the world's hazard is rarer than predicted), "uncalibrated: optimistic"
-  (more frequent), "uncalibrated: mixed"; "no hazard in the world" when it never came (the
-  curves stop every train first: the column then rests on the model alone). The model is
-  not the world (the worlds add traction, dead time and misperception the models abstract),
-  so an uncalibrated column is a finding about the model, stated, not hidden.
+- **Bias**: the world's hazard cycles over the column's predicted ones, pooled over every
+  cycle (observed / predicted, 1 when calibrated on average), with a 95 % interval from the
+  per-train sums (ratio estimator, trains as units). It names the size of a miss that the
+  bins, each with its own wide interval, may all let through (issue 41 item 6: m2's quick
+  world, seed 1, every bin inside its interval while the world's hazard came 8.7 times as
+  often as the column said).
+- **Verdict**: "calibrated" when the bias interval holds 1 and every bin with at least
+  MIN_CYCLES cycles holds its mean prediction inside its interval; otherwise uncalibrated,
+  and which way: "uncalibrated: conservative" (the world's hazard is rarer than predicted),
+  "uncalibrated: optimistic" (more frequent), "uncalibrated: mixed"; a bias interval
+  without 1 decides the direction. "no hazard in the world" when it never came (the curves
+  stop every train first: the column then rests on the model alone). The model is not the
+  world (the worlds add traction, dead time and misperception the models abstract), so an
+  uncalibrated column is a finding about the model, stated with its size, not hidden.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -97,13 +105,42 @@ def brier(risk: np.ndarray, label: np.ndarray) -> tuple[float, float]:
     return float(((risk - y) ** 2).mean()), float(((base - y) ** 2).mean())
 
 
+@dataclass(frozen=True)
+class Bias:
+    """Observed hazard cycles / predicted, pooled, with its 95 % half-width (trains as units)."""
+
+    ratio: float
+    half_width: float
+
+    @property
+    def holds_one(self) -> bool:
+        return abs(self.ratio - 1.0) <= self.half_width
+
+    def describe(self) -> str:
+        return (f"the world's hazard {self.ratio:.3g} x the column's prediction (95 %: "
+                f"{max(0.0, self.ratio - self.half_width):.3g} to {self.ratio + self.half_width:.3g})")
+
+
+def pooled_bias(risk: np.ndarray, label: np.ndarray) -> Bias:
+    """sum(label) / sum(risk) over every cycle (columns are trains), with the ratio estimator's
+    half-width from the per-train sums."""
+    hits, predicted = label.sum(axis=0).astype(float), risk.sum(axis=0)
+    total = float(predicted.sum())
+    if total <= 0:
+        return Bias(float("inf") if hits.sum() else 1.0, 0.0)
+    ratio = float(hits.sum()) / total
+    return Bias(ratio, 1.96 * math.sqrt(float(((hits - ratio * predicted) ** 2).sum())) / total)
+
+
 VERDICTS = ("calibrated", "uncalibrated: conservative", "uncalibrated: optimistic", "uncalibrated: mixed",
             "no hazard in the world")
 
 
-def verdict(judged: list[Bin], missed: list[Bin], any_hazard: bool) -> str:
+def verdict(judged: list[Bin], missed: list[Bin], any_hazard: bool, bias: Optional[Bias] = None) -> str:
     if not any_hazard:
         return "no hazard in the world"
+    if bias is not None and not bias.holds_one:
+        return "uncalibrated: optimistic" if bias.ratio > 1 else "uncalibrated: conservative"
     if judged and not missed:
         return "calibrated"
     over = sum(x.observed < x.predicted for x in missed)
@@ -121,11 +158,13 @@ def judge(model: str, quick: bool) -> list[dict]:
         score, base = brier(risk, label)
         judged = [x for x in b if x.cycles >= MIN_CYCLES]
         missed = [x for x in judged if not x.inside]
+        bias = pooled_bias(risk, label)
         rows.append({"model": model, "seed": seed, "cycles": int(risk.size), "trains": trains, "seconds": seconds,
                      "brier": score, "brier_base_rate": base, "skill": 1.0 - score / base if base > 0 else float("nan"),
                      "hazard_rate": float(label.mean()), "mean_risk": float(risk.mean()),
                      "bins": [x.__dict__ for x in b], "judged_bins": len(judged),
-                     "verdict": verdict(judged, missed, bool(label.any())),
+                     "bias": bias.ratio, "bias_half_width": bias.half_width, "bias_text": bias.describe(),
+                     "verdict": verdict(judged, missed, bool(label.any()), bias),
                      "missed": [f"{x.lo_ppm}-{x.hi_ppm} ppm: predicted {x.predicted:.2g}, observed {x.observed:.2g}"
                                 f" +- {x.half_width:.2g}" for x in missed]})
     return rows
@@ -170,11 +209,12 @@ def section(out_dir, quick: bool, progress) -> Section:
         results += judge(model, quick)
     figure = _figure(out_dir, results)
     rows = [[r["model"], r["seed"], f"{r['cycles']:,}", f"{r['hazard_rate']:.3g}", f"{r['mean_risk']:.3g}",
-             f"{r['brier']:.3g}", f"{r['brier_base_rate']:.3g}", f"{r['skill']:.2f}", r["verdict"],
+             f"{r['brier']:.3g}", f"{r['brier_base_rate']:.3g}", f"{r['skill']:.2f}",
+             f"{r['bias']:.3g} ± {r['bias_half_width']:.2g}", r["verdict"],
              "; ".join(r["missed"]) or "-"] for r in results]
     md = [__doc__.split("\n\n", 1)[1].strip() + "\n",
           md_table(["table", "world seed", "cycles", "hazard rate", "mean risk", "Brier", "Brier of the base rate",
-                    "skill", "verdict", "bins missed (95 %, trains as units)"], rows),
+                    "skill", "bias (observed / predicted, 95 %)", "verdict", "bins missed (95 %, trains as units)"], rows),
           f"\n![calibration]({figure})\n"]
     checks = []
     for r in results:
@@ -192,7 +232,7 @@ def section(out_dir, quick: bool, progress) -> Section:
                                 f"0 of {r['cycles']:,} cycles followed by the hazard; the column predicts "
                                 f"{r['mean_risk']:.2g} on average"))
         checks.append(Check(f"{tag}: verdict stated", r["verdict"] in VERDICTS,
-                            f"{r['verdict']}, Brier {r['brier']:.3g} (base rate {r['brier_base_rate']:.3g})",
+                            f"{r['verdict']}: {r['bias_text']}, Brier {r['brier']:.3g} (base rate {r['brier_base_rate']:.3g})",
                             {"bins": r["bins"], "missed": r["missed"]}))
     return Section("Calibration of the table's live risk", "\n".join(md), checks, [figure],
                    headline={f"calibration_{r['model']}_seed{r['seed']}": r["verdict"] for r in results})

@@ -114,7 +114,7 @@ def register(sub) -> None:
             "Solve one of the papers' models (--model) or any Cassandra .pomdp file (--pomdp) with "
             "point-based value iteration, compile the alpha vectors into a finite-state controller, "
             "evaluate it exactly and write DIR/<name>.table.rgt, DIR/<name>.pomdp and DIR/<name>.summary.txt. "
-            "For m2 the time compilation leaves (up to 80 % of the budget) goes to an information relaxation "
+            "For m2 the time compilation leaves (up to 85 % of the budget) goes to an information relaxation "
             "(the model with all but the distance read without error), whose upper bound also bounds the model's "
             "optimum; the smaller bound is printed and written. "
             "Progress (iteration, bounds, gap, elapsed) goes to stderr."
