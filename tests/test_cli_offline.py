@@ -12,6 +12,7 @@ from conftest import ROOT, TIGER_PATH
 from railguard.main import main
 from monitor.core.table import decode
 from monitor.offline.pomdp_file import read
+from monitor.tables import read as read_table
 
 SOLVE_KEYS = {"model", "states", "actions", "observations", "nodes", "lower_bound", "upper_bound",
               "controller_value", "seconds", "table_bytes", "sha256", "table", "pomdp"}
@@ -88,6 +89,13 @@ def test_solve_m1_then_table_show(capsys, tmp_path):
     obj = one_json_object(out)
     assert obj["model"] == "m1" and (obj["states"], obj["actions"], obj["observations"]) == (4, 3, 4)
     assert obj["lower_bound"] <= obj["upper_bound"]
+    # the default model is the one the shipped table was solved for: the solve says how far it is
+    shipped = decode(read_table("m1"))
+    assert obj["shipped"]["sha256"] == shipped.sha256
+    assert obj["shipped"]["controller_value"] == shipped.header["controller_value"]
+    diff = obj["controller_value"] - shipped.header["controller_value"]
+    summary = (tmp_path / "m1.summary.txt").read_text()
+    assert f"shipped table    {shipped.header['controller_value']:.4f}" in summary and f"this table {diff:+.4f}" in summary
     table_path = tmp_path / "m1.table.rgt"
     assert obj["table"] == str(table_path)
     t = decode(table_path.read_bytes(), expect_model="m1")
@@ -144,6 +152,8 @@ def test_solve_with_config_solver_table(capsys, tmp_path):
     t = decode((tmp_path / "o" / "m1.table.rgt").read_bytes())
     assert t.header["params"]["alpha1_m"] == 400.0
     assert t.header["solver"]["max_iterations"] == 3
+    assert one_json_object(out)["shipped"] is None           # other parameters: no shipped table to compare
+    assert "shipped table" not in (tmp_path / "o" / "m1.summary.txt").read_text()
 
 
 # ------------------------------------------------------------------ errors

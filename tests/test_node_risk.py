@@ -157,9 +157,10 @@ def test_a_cycle_is_labelled_by_the_hazard_within_the_next_30_s(monkeypatch):
 
     zone = np.zeros((1000, 2), dtype=np.int64)
     zone[700, 0] = 3
+    zone[0, 1] = cal.NEAR_START_ZONE          # train 1's obstacle starts near (the "why" of issue 41 item 6)
     run = SimpleNamespace(trace={"node": np.zeros((1000, 2), dtype=np.int64)}, episode={"zone": zone})
     monkeypatch.setattr(cal.seed000, "simulate", lambda *a, **k: run)
-    risk, label = cal.world_cycles("m1", 2, 100.0, 0)
-    assert risk.shape == label.shape == (700, 2)
+    risk, label, near = cal.world_cycles("m1", 2, 100.0, 0)
+    assert risk.shape == label.shape == (700, 2) and near.tolist() == [False, True]
     assert np.flatnonzero(label[:, 0]).tolist() == list(range(400, 700)) and not label[:, 1].any()
     assert risk[0, 0] == decode(read("m1")).risk[0] / 1e6

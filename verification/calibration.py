@@ -18,6 +18,11 @@ speed, not on what the monitor saw.
   bins, each with its own wide interval, may all let through (issue 41 item 6: m2's quick
   world, seed 1, every bin inside its interval while the world's hazard came 8.7 times as
   often as the column said).
+- **Why**: the same bias over the trains whose obstacle starts beyond the near zones only
+  (NEAR_START_ZONE), beside how many of the trains the hazard came to started near: the
+  models' start belief puts the obstacle far (Model 2: distance level 0), the worlds do not
+  (m2's quick world, seed 1: 24 of 96 trains start near, all 3 hazard trains among them;
+  the other 72 had no hazard, bias 0).
 - **Verdict**: "calibrated" when the bias interval holds 1 and every bin with at least
   MIN_CYCLES cycles holds its mean prediction inside its interval; otherwise uncalibrated,
   and which way: "uncalibrated: conservative" (the world's hazard is rarer than predicted),
@@ -62,9 +67,13 @@ class Bin:
         return abs(self.observed - self.predicted) <= self.half_width
 
 
-def world_cycles(model: str, trains: int, seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+NEAR_START_ZONE = 2     # a train whose obstacle starts in this zone or nearer: a start the models' b0 has not
+
+
+def world_cycles(model: str, trains: int, seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(risk, hazard) per cycle and train, (steps - horizon, trains): the table's risk at the
-    monitor's node and whether the hazard came within the horizon, from the model's world."""
+    monitor's node and whether the hazard came within the horizon, from the model's world;
+    and (trains,) whether the train's obstacle starts in the near zones (NEAR_START_ZONE)."""
     table = decode(read(model))
     if model == "m1":
         run = seed000.simulate(seed000.PHANTOMS, trains, seconds, seed, record=trains)
@@ -78,7 +87,8 @@ def world_cycles(model: str, trains: int, seconds: float, seed: int) -> tuple[np
     usable = hazard.shape[0] - HORIZON_STEPS
     upto = np.vstack([after[HORIZON_STEPS + 1:], np.zeros((1, hazard.shape[1]))])[:usable]
     label = (after[:usable] - upto) > 0
-    return risk[:usable], label
+    zone = run.episode["zone"] if model == "m1" else run.sample["zone"]
+    return risk[:usable], label, np.asarray(zone[0]) >= NEAR_START_ZONE
 
 
 def bins(risk: np.ndarray, label: np.ndarray) -> list[Bin]:
@@ -153,17 +163,24 @@ def judge(model: str, quick: bool) -> list[dict]:
     trains, seconds = SIZES["quick" if quick else "full"]
     rows = []
     for seed in SEEDS[model]:
-        risk, label = world_cycles(model, trains, seconds, seed)
+        risk, label, near = world_cycles(model, trains, seconds, seed)
         b = bins(risk, label)
         score, base = brier(risk, label)
         judged = [x for x in b if x.cycles >= MIN_CYCLES]
         missed = [x for x in judged if not x.inside]
         bias = pooled_bias(risk, label)
+        far = pooled_bias(risk[:, ~near], label[:, ~near]) if (~near).any() else None
         rows.append({"model": model, "seed": seed, "cycles": int(risk.size), "trains": trains, "seconds": seconds,
                      "brier": score, "brier_base_rate": base, "skill": 1.0 - score / base if base > 0 else float("nan"),
                      "hazard_rate": float(label.mean()), "mean_risk": float(risk.mean()),
                      "bins": [x.__dict__ for x in b], "judged_bins": len(judged),
                      "bias": bias.ratio, "bias_half_width": bias.half_width, "bias_text": bias.describe(),
+                     # why (issue 41 item 6): the trains whose obstacle starts near, which the model's b0 lacks
+                     "near_start_trains": int(near.sum()),
+                     "hazard_trains_near_start": int(label[:, near].any(axis=0).sum()),
+                     "hazard_trains": int(label.any(axis=0).sum()),
+                     "bias_far_start": None if far is None else far.ratio,
+                     "bias_far_start_half_width": None if far is None else far.half_width,
                      "verdict": verdict(judged, missed, bool(label.any()), bias),
                      "missed": [f"{x.lo_ppm}-{x.hi_ppm} ppm: predicted {x.predicted:.2g}, observed {x.observed:.2g}"
                                 f" +- {x.half_width:.2g}" for x in missed]})
@@ -210,11 +227,15 @@ def section(out_dir, quick: bool, progress) -> Section:
     figure = _figure(out_dir, results)
     rows = [[r["model"], r["seed"], f"{r['cycles']:,}", f"{r['hazard_rate']:.3g}", f"{r['mean_risk']:.3g}",
              f"{r['brier']:.3g}", f"{r['brier_base_rate']:.3g}", f"{r['skill']:.2f}",
-             f"{r['bias']:.3g} ± {r['bias_half_width']:.2g}", r["verdict"],
+             f"{r['bias']:.3g} ± {r['bias_half_width']:.2g}",
+             f"{r['hazard_trains_near_start']} of {r['hazard_trains']} (of {r['near_start_trains']} starting near)",
+             "-" if r["bias_far_start"] is None else f"{r['bias_far_start']:.3g} ± {r['bias_far_start_half_width']:.2g}",
+             r["verdict"],
              "; ".join(r["missed"]) or "-"] for r in results]
     md = [__doc__.split("\n\n", 1)[1].strip() + "\n",
           md_table(["table", "world seed", "cycles", "hazard rate", "mean risk", "Brier", "Brier of the base rate",
-                    "skill", "bias (observed / predicted, 95 %)", "verdict", "bins missed (95 %, trains as units)"], rows),
+                    "skill", "bias (observed / predicted, 95 %)", "hazard trains that started near",
+                    "bias of the trains starting far", "verdict", "bins missed (95 %, trains as units)"], rows),
           f"\n![calibration]({figure})\n"]
     checks = []
     for r in results:

@@ -39,6 +39,7 @@ from monitor.offline.controller import Controller
 from monitor.offline.models import rebuild
 from monitor.offline.params import ConfigError
 from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas
+from monitor.offline.table_view import compilation_sentence
 from monitor.tables import SHIPPED, read
 
 from . import seed000, seed001, sharp_hazard
@@ -497,25 +498,6 @@ def _comparison_table(r: dict) -> str:
                      "decision"], rows)
 
 
-def compilation_sentence(table) -> str:
-    """The shipped table's two values side by side (issue 41, item 3): what it is worth on its
-    own objective, with the release cost, and on the alpha vectors' objective, without it,
-    against their lower bound; the pair nobody should mix up."""
-    from monitor.offline.table_view import compilation
-
-    f = compilation(table)
-    h = table.header
-    if not f:
-        return f"Compilation: no lower bound in the table's header ({table.model} {table.sha256[:12]})."
-    loss = f["compilation_loss_percent"]
-    paid = (f"{h['controller_value']:.4f} with the release cost ({f['release_cost']:g} per release, its own objective), "
-            if f["release_cost"] else "")
-    return (f"Compilation ({table.nodes} nodes): the table is worth {paid}"
-            f"{f['controller_value_without_release_cost']:.4f} without it, on the objective of the alpha vectors' lower "
-            f"bound {h['lower_bound']:.4f}: {abs(loss):.2f} % {'below' if loss > 0 else 'above'} it "
-            "(`railguard table show`).")
-
-
 def section(out_dir, quick: bool, progress):
     """`railguard verify` part: the shipped tables against the baselines (ACAS X's rule, by
     paired one-sided tests), and the Pareto frontier each was picked from
@@ -555,7 +537,7 @@ def section(out_dir, quick: bool, progress):
         md.append(md_table(["policy", *(LABELS[k] for k in METRICS), "world collisions"],
                            [[p, *(_fmt(row, k) for k in METRICS), str(row.get("world_collisions", ""))]
                             for p, row in rows.items()]))
-        md.append("\n" + compilation_sentence(decode(read(name))) + "\n")
+        md.append("\n" + compilation_sentence(decode(read(name))) + "\n")   # issue 41 item 3
         bt = r["belief_tracking_p_hazard"]
         if bt:
             md.append(f"\nBelief tracking's P(hazard): {bt['p']:.4g} ± {bt['ci']:.2g} (95 %, {bt['relative_half_width']:.1%} "

@@ -55,6 +55,7 @@ class Result:
     seconds: float
     relaxed: Optional["RelaxedBound"] = None
     plain_value: Optional[float] = None      # the table's value without the release cost (controller.plain_value)
+    shipped: Optional[dict] = None           # the shipped table of the same model, if any (against_shipped)
 
     @property
     def sha256(self) -> str:
@@ -185,7 +186,25 @@ def _run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]
     data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist(),
                                node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
     plain = plain_value(model, ctrl) if model.release_cost else comp.value     # (no release cost: the same value)
-    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain)
+    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain, against_shipped(model))
+
+
+def against_shipped(model: POMDP) -> Optional[dict]:
+    """The shipped table solved for this very model (same name and model digest), as its
+    header and `table show` value it: what a quick solve is measured against (issue 41 item
+    4: the shipped tables may take 30 minutes, the solve users and CI run 60 s). None when
+    no shipped table was solved for this model (other parameters, a .pomdp file)."""
+    from ..tables import SHIPPED, read
+    from .table_view import compilation
+
+    if model.name not in SHIPPED:
+        return None
+    table = table_format.decode(read(model.name))
+    if table.header.get("model_sha256") != model_digest(model):
+        return None
+    plain = compilation(table).get("controller_value_without_release_cost", table.header["controller_value"])
+    return {"sha256": table.sha256, "nodes": table.nodes, "controller_value": table.header["controller_value"],
+            "controller_value_without_release_cost": plain, "lower_bound": table.header["lower_bound"]}
 
 
 def time_step_of(model: POMDP) -> float:
@@ -273,6 +292,7 @@ def figures(result: Result) -> dict:
         "controller_value_without_release_cost": result.plain_value,
         "compilation_loss_percent": (None if result.plain_value is None
                                      else compilation_loss_percent(sol.lower_bound, result.plain_value)),
+        "shipped": result.shipped,
         "iterations": sol.iterations,
         "stop_reason": sol.stop_reason,
         "seconds": result.seconds,
@@ -291,6 +311,19 @@ def compilation_lines(plain: Optional[float], release_cost: float, loss: Optiona
     paid = f"the value above pays {release_cost:g} per release; " if release_cost else ""
     return [f"compilation      {plain:.4f}   ({paid}without release cost, the lower bound's objective: "
             f"{abs(loss):.2f} % {'below' if loss > 0 else 'above'} the lower bound)"]
+
+
+def shipped_lines(f: dict) -> list[str]:
+    """How this table compares with the shipped one of the same model, for a person."""
+    ship = f.get("shipped")
+    if not ship:
+        return []
+    diff = f["controller_value"] - ship["controller_value"]
+    plain = ("" if f["controller_value_without_release_cost"] is None or not f["release_cost"] else
+             f", {f['controller_value_without_release_cost'] - ship['controller_value_without_release_cost']:+.4f}"
+             " without the release cost")
+    return [f"shipped table    {ship['controller_value']:.4f}   ({ship['nodes']} nodes, {ship['sha256'][:12]}; "
+            f"this table {diff:+.4f}{plain}: {'better' if diff > 0 else 'not better'} than the shipped one)"]
 
 
 def gap_percent(upper: float, value: float) -> float:
@@ -320,5 +353,6 @@ def summary_text(result: Result) -> str:
         " the table is within this of the optimum)",
         f"table            {f['table_bytes']} bytes, sha256 {f['sha256']}",
         f"risk             {risk_range(table_format.decode(result.table))}",
+        *shipped_lines(f),
     ]
     return "\n".join(lines) + "\n"

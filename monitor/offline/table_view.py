@@ -141,6 +141,23 @@ def compilation_text(figures: dict) -> list[str]:
                              figures["compilation_loss_percent"])
 
 
+def compilation_sentence(table) -> str:
+    """The shipped table's two values side by side (issue 41, item 3): what it is worth on its
+    own objective, with the release cost, and on the alpha vectors' objective, without it,
+    against their lower bound; the pair nobody should mix up."""
+    f = compilation(table)
+    h = table.header
+    if not f:
+        return f"Compilation: no lower bound in the table's header ({table.model} {table.sha256[:12]})."
+    loss = f["compilation_loss_percent"]
+    paid = (f"{h['controller_value']:.4f} with the release cost ({f['release_cost']:g} per release, its own objective), "
+            if f["release_cost"] else "")
+    return (f"Compilation ({table.nodes} nodes): the table is worth {paid}"
+            f"{f['controller_value_without_release_cost']:.4f} without it, on the objective of the alpha vectors' lower "
+            f"bound {h['lower_bound']:.4f}: {abs(loss):.2f} % {'below' if loss > 0 else 'above'} it "
+            "(`railguard table show`).")
+
+
 def render(table: Table, max_observations: int = 6, full: bool = False, loop=None, extra: tuple = ()) -> str:
     """The table for a person: header, then a line per node. By default each line fits in
     WIDTH characters: with the closed loop's view (`loop`, closed_loop()) the next nodes
