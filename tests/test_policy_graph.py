@@ -157,7 +157,7 @@ def test_a_layered_table_is_built_from_every_base_and_the_best_kept():
     layer = ConditionLayer.of(model.observations, spec.plan.conditions)
     sol = solve(base_model(model, layer), replace(spec.plan.settings, max_iterations=12, time_budget_s=1e9))
     said: list[str] = []
-    comp = compile_monotone(model, sol, layer, max_nodes=64, rounds=2, progress=said.append)
+    comp = compile_monotone(model, sol, layer, max_nodes=64, rounds=1, progress=said.append)
     finals = [float(line.rsplit(" ", 1)[1]) for line in said if line.startswith("monotone: final controller from")]
     assert any("from the witnesses layered" in line for line in said)
     assert any("from the policy graph layered" in line for line in said)
