@@ -100,12 +100,17 @@ def bins(risk: np.ndarray, label: np.ndarray) -> list[Bin]:
         n = int(here.sum())
         if not n:
             continue
-        count = here.sum(axis=0)
-        hits = (label & here).sum(axis=0)
-        observed = hits.sum() / n
-        se = math.sqrt(float(((hits - observed * count) ** 2).sum())) / n
-        out.append(Bin(lo, hi, n, float(risk[here].mean()), float(observed), 1.96 * se))
+        observed, half_width = ratio_estimate((label & here).sum(axis=0), here.sum(axis=0))
+        out.append(Bin(lo, hi, n, float(risk[here].mean()), observed, half_width))
     return out
+
+
+def ratio_estimate(num: np.ndarray, den: np.ndarray) -> tuple[float, float]:
+    """sum(num) / sum(den) over trains (one entry each) and its 95 % half-width by the ratio
+    estimator: trains, not cycles, are the independent units."""
+    total = float(den.sum())
+    ratio = float(num.sum()) / total
+    return ratio, 1.96 * math.sqrt(float(((num - ratio * den) ** 2).sum())) / total
 
 
 def brier(risk: np.ndarray, label: np.ndarray) -> tuple[float, float]:
@@ -135,11 +140,9 @@ def pooled_bias(risk: np.ndarray, label: np.ndarray) -> Bias:
     """sum(label) / sum(risk) over every cycle (columns are trains), with the ratio estimator's
     half-width from the per-train sums."""
     hits, predicted = label.sum(axis=0).astype(float), risk.sum(axis=0)
-    total = float(predicted.sum())
-    if total <= 0:
+    if float(predicted.sum()) <= 0:
         return Bias(float("inf") if hits.sum() else 1.0, 0.0)
-    ratio = float(hits.sum()) / total
-    return Bias(ratio, 1.96 * math.sqrt(float(((hits - ratio * predicted) ** 2).sum())) / total)
+    return Bias(*ratio_estimate(hits, predicted))
 
 
 VERDICTS = ("calibrated", "uncalibrated: conservative", "uncalibrated: optimistic", "uncalibrated: mixed",

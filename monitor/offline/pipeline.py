@@ -195,14 +195,15 @@ def against_shipped(model: POMDP) -> Optional[dict]:
     4: the shipped tables may take 30 minutes, the solve users and CI run 60 s). None when
     no shipped table was solved for this model (other parameters, a .pomdp file)."""
     from ..tables import SHIPPED, read
-    from .table_view import compilation
+    from .controller import Controller
 
     if model.name not in SHIPPED:
         return None
     table = table_format.decode(read(model.name))
     if table.header.get("model_sha256") != model_digest(model):
         return None
-    plain = compilation(table).get("controller_value_without_release_cost", table.header["controller_value"])
+    # the same model: valued on it directly, not rebuilt from the header as `table show` must
+    plain = plain_value(model, Controller.of_table(table)) if model.release_cost else table.header["controller_value"]
     return {"sha256": table.sha256, "nodes": table.nodes, "controller_value": table.header["controller_value"],
             "controller_value_without_release_cost": plain, "lower_bound": table.header["lower_bound"]}
 
