@@ -13,6 +13,7 @@ import pytest
 from conftest import ROOT
 from monitor.core import table as table_format
 from monitor.core.table import decode
+from monitor.core.types import R_MEMORY, R_TABLE, R_WARNING
 from monitor.offline.controller import Controller
 from monitor.offline.models import load
 from verification import evaluate as ev
@@ -20,7 +21,7 @@ from verification import pareto
 from verification import sharp_hazard as sh
 from verification.fastcore import TablePolicy, VectorMonitor
 from verification.policies import BeliefTracking, finite_baselines, supervised, supervision_floor
-from verification.world_metrics import PolicyCost, paired, ratio, wilson_upper
+from verification.world_metrics import PolicyCost, paired, policy_alone, ratio, wilson_upper
 
 ENV = {**os.environ, "MPLBACKEND": "Agg"}
 
@@ -155,15 +156,19 @@ def test_wilson_upper_bound_is_honest_when_nothing_hits():
     assert wilson_upper(0, 0) == 1.0 and wilson_upper(10, 10) == 1.0
 
 
-def test_policy_cost_counts_braking_without_obstacle_stops_and_changes():
+def test_policy_cost_counts_braking_without_need_the_policys_own_stops_and_changes():
     cost = PolicyCost(2, dt=0.1, encounters=np.array([1.0, 0.0]))
-    obstacle = [[True, False], [True, False], [False, False], [False, False]]
+    need = [[True, False], [True, False], [False, False], [False, False]]
     demand = [[1, 0], [1, 2], [0, 2], [2, 0]]
-    for o, d in zip(obstacle, demand):
-        cost.cycle(np.array(o), np.array(d))
+    reasons = [[R_TABLE, 0], [R_TABLE, R_TABLE], [0, R_TABLE | R_MEMORY], [R_TABLE | R_WARNING, 0]]
+    for o, d, r in zip(need, demand, reasons):
+        cost.cycle(np.array(o), np.array(d), policy_alone(np.array(r)))
     cost.moved(np.array([1.0, 1.0]), np.array([0.0, 1.0]), np.array([True, False]))
     f = cost.figures()
     assert f["unnecessary_braking"] == pytest.approx(3 / 6)     # train 0: 1 of 2 free cycles; train 1: 2 of 4
+    # the policy alone: train 0's last cycle (a warning is no cause to brake), train 1's second
+    # (its third is the memory's too); a braking cycle with need never counts
+    assert f["policy_braking"] == pytest.approx(2 / 6)
     assert f["demand_changes_per_encounter"] == pytest.approx((3 + 2) / 2)   # encounters: 1 + 1 new, 0
     assert f["stops_per_train_hour"] == pytest.approx(1 / (8 * 0.1 / 3600))
 
@@ -351,7 +356,7 @@ def test_the_report_part_judges_the_runs_users_make(evaluated, tmp_path, monkeyp
         shown = json.loads(railguard("table", "show", name, "--json").stdout)
         assert (f"{shown['controller_value_without_release_cost']:.4f} without it" in sec.markdown
                 and f"{abs(shown['compilation_loss_percent']):.2f} % " in sec.markdown), name
-    assert "-0.2051 with the release cost (2 per release" in sec.markdown
+    assert "-0.1962 with the release cost (2 per release" in sec.markdown
 
 
 @pytest.mark.parametrize("name", ["m1", "m2"])
@@ -399,19 +404,22 @@ def test_evaluate_gives_belief_trackings_sharp_hazard_and_a_verdict_per_baseline
 @pytest.mark.parametrize("name", ["m1", "m2"])
 def test_shipped_table_against_the_rules_it_is_held_to_and_the_verdicts_stated(evaluated, name):
     """ACAS X's rule as held (evaluate.ACCEPTED): m1 better than threshold on p_hazard and
-    unnecessary braking, m2 on p_hazard; against belief tracking the stated trade-off (issue
-    31: belief tracking is safer by its sharp estimate, the table brakes needlessly less),
-    and m2 no better than threshold on needless braking (STATED); rule_checks says so."""
+    unnecessary braking, m2 on p_hazard; against belief tracking what is stated (issue 31:
+    belief tracking is safer by its sharp estimate; m1 brakes needlessly less, m2 in its
+    world since issue 41 more), and m2 no better than threshold on needless braking
+    (STATED); rule_checks says so."""
     r = evaluated[name]
     assert ev.ACCEPTED == {"m1": {"threshold": ("p_hazard", "unnecessary_braking")}, "m2": {"threshold": ("p_hazard",)}}
     for base, figures in ev.ACCEPTED[name].items():
         assert ev.verdict({k: r["comparisons"][base]["figures"][k]["decision"] for k in figures}) == "better"
     bt = r["comparisons"]["belief_tracking"]["figures"]
-    assert bt["p_hazard"]["decision"] == "worse" and bt["unnecessary_braking"]["decision"] != "worse"
+    assert bt["p_hazard"]["decision"] == "worse"
+    assert bt["unnecessary_braking"]["decision"] != ("worse" if name == "m1" else "better")
     assert r["acceptance_verdicts"]["belief_tracking"] in ("trade-off", "worse")
     checks = ev.rule_checks(name, name, r["comparisons"], quick=True)
     assert checks and all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
-    assert any("belief_tracking worse on p_hazard, better on unnecessary_braking" in c.name for c in checks)
+    said = "better" if name == "m1" else "worse"
+    assert any(f"belief_tracking worse on p_hazard, {said} on unnecessary_braking" in c.name for c in checks)
 
 
 def test_a_statement_holds_only_while_the_decisions_say_it():
@@ -423,7 +431,8 @@ def test_a_statement_holds_only_while_the_decisions_say_it():
     assert ev.holds_statement("m1", "belief_tracking", comp("worse", "indistinguishable"), quick=True)
     # the old rule's reading ('no worse' on p_hazard) contradicts the statement at any size
     assert not ev.holds_statement("m1", "belief_tracking", comp("better", "better"), quick=True)
-    assert not ev.holds_statement("m2", "belief_tracking", comp("indistinguishable", "worse"), quick=True)
+    assert not ev.holds_statement("m2", "belief_tracking", comp("worse", "better"), quick=True)
+    assert ev.holds_statement("m2", "belief_tracking", comp("worse", "worse"), quick=False)
     assert ev.holds_statement("m2", "threshold", comp("better", "worse"), quick=False)
     assert not ev.holds_statement("m2", "threshold", comp("better", "better"), quick=True)
     def threshold(u):
@@ -493,6 +502,22 @@ def test_pareto_frontier_keeps_only_unbeaten_points():
     assert pareto.frontier(pts) == [1, 0, 3]
 
 
+def test_recommendation_is_the_safest_point_the_world_cannot_tell_from_the_least_braking():
+    rng = np.random.default_rng(3)
+    y = np.full(200, 100.0)
+    luck = rng.poisson(2.0, 200).astype(float)
+
+    def point(p, extra):
+        x = luck + extra
+        return {"p_hazard": p, "unnecessary_braking": float(x.sum() / y.sum()),
+                "_per_train": {"unnecessary_braking": (x, y)}}
+    noise = rng.normal(0.0, 0.05, 200)
+    pts = [point(4e-5, 0.0), point(3e-5, noise - noise.mean() + 0.002), point(1e-5, 3.0)]    # 1: alike within the noise; 2: worse
+    assert pts[1]["unnecessary_braking"] > pts[0]["unnecessary_braking"]
+    assert pareto.recommend(pts, [0, 1, 2]) == 1
+    assert pareto.recommend(pts, [0, 2]) == 0 and pareto.recommend(pts, []) is None
+
+
 def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     grid = tmp_path / "grid.toml"
     grid.write_text("braking_weight = [1.0, 4.0]\n", encoding="utf-8")
@@ -523,10 +548,15 @@ def test_solve_pareto_writes_the_frontier_and_its_plot(tmp_path):
     assert set(r["dominating"]) == {i for i in r["frontier"] if r["points"][i]["against"]["threshold"]["verdict"] == "better"}
     better_bt = [i for i in r["dominating"] if r["points"][i]["against"]["belief_tracking"]["verdict"] == "better"]
     assert r["preferred"] == (better_bt or r["dominating"])
-    assert r["recommended"] == (min(r["preferred"], key=lambda i: r["points"][i]["unnecessary_braking"])
-                                if r["preferred"] else None)
+    if r["preferred"]:                                    # the least braking, or the safest it cannot be told from
+        least = min(r["points"][i]["unnecessary_braking"] for i in r["preferred"])
+        assert r["points"][r["recommended"]]["unnecessary_braking"] >= least
+    else:
+        assert r["recommended"] is None
     assert r["baselines"]["belief_tracking"]["p_hazard_ci"] > 0 and "better than belief_tracking" in pareto.render(r)
     assert "own BT p" in pareto.render(r) and "vs BT, default weights" in pareto.render(r)
+    assert "policy own" in pareto.render(r) and all(0.0 <= p["policy_braking"] <= p["unnecessary_braking"]
+                                                    for p in r["points"])
     front = tmp_path / "pareto-m1"
     assert json.loads((front / "frontier.json").read_text())["points"] == r["points"]
     assert (front / "frontier.png").read_bytes()[:4] == b"\x89PNG"
@@ -572,12 +602,16 @@ def test_m2_table_brakes_once_in_the_default_scenario(tmp_path):
     """Hysteresis (issue 12) for the default table: `railguard run` as the README gives it.
     The default scenario silences a channel for 4 s at standstill; the monitor answers with
     an emergency and returns (two changes any table gets). Without that fault, the table's
-    own changes: one (service braking to a stop, held), against 17 to 21 without release cost."""
+    own changes: at most two (service braking to a stop; issue 41's table releases it at
+    standstill, 544 m from the obstacle, in the far zone), against 17 to 21 without release
+    cost."""
     proc = railguard("run", "--json", "--no-plot", "--out", str(tmp_path / "default"))
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
-    assert d["table"] == "m2" and d["outcome"] == "stopped" and d["demand_changes"] <= 3, d
-    assert d["demand_changes_by_cause"] == {"encounter": 1, "faults": 2}, d["demand_changes_by_cause"]
+    assert d["table"] == "m2" and d["outcome"] == "stopped" and d["demand_changes"] <= 4, d
+    assert d["final_speed_mps"] == 0.0 and d["margin_m"] > 500, d
+    assert 1 <= d["demand_changes_by_cause"]["encounter"] <= 2, d["demand_changes_by_cause"]
+    assert d["demand_changes_by_cause"]["faults"] == 2, d["demand_changes_by_cause"]
     text = (ROOT / "monitor" / "scenarios" / "static-obstacle.toml").read_text(encoding="utf-8")
     assert "[[faults]]" in text
     calm = tmp_path / "static-obstacle-no-fault.toml"

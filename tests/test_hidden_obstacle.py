@@ -32,7 +32,9 @@ def test_an_obstacle_hidden_behind_a_farther_one_is_remembered_and_the_train_sto
     issue 38 item 2) the train hits A without braking before A shows again (B stays beyond the
     curves, which count the 1.5 km too, until then)."""
     s = _run(tmp_path, table)
-    assert s["outcome"] == "stopped" and 230 <= s["margin_m"] <= 340, s
+    # m1's table brakes as A shows again (230 to 340 m short of it); issue 41's m2 table leaves
+    # the stop to the curves (97.7 m short)
+    assert s["outcome"] == "stopped" and (230 if table == "m1" else 80) <= s["margin_m"] <= 340, s
     assert s["track"]["forgotten"] == 0 and s["track"]["held_longest_s"] >= 70
     assert 59 <= s["first_emergency_after_init_s"] <= 61             # A's curves, from memory
     blunt = tmp_path / "blunt.toml"

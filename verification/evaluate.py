@@ -9,8 +9,10 @@ the simple rules on both collision risk and alert rate. For a table and each bas
   for belief tracking (not a finite-state controller) a sharp estimate with its 95 %
   interval (verification/sharp_hazard.py: conditional Monte Carlo with the exact next-step
   hazard, importance sampling guided by the table's exact values);
-- `unnecessary_braking` (fraction of obstacle-free time with a brake demand),
-  `stops_per_train_hour`, `demand_changes_per_encounter`: Monte Carlo in the table's seed
+- `unnecessary_braking` (fraction of the time without need with a brake demand; m1: no
+  obstacle, m2: none above eq. 11's low risk), `policy_braking` (the part of it the policy
+  alone asked for: world_metrics), `stops_per_train_hour`, `demand_changes_per_encounter`:
+  Monte Carlo in the table's seed
   world (m1: seed 000's world with Model 1's 2 % phantoms and misses; m2: seed 001's world
   with eq. 9's misperception), the vectorised monitor core running the policy, with 95 %
   intervals. Every policy sees the same random numbers on the same trains (common random
@@ -248,9 +250,10 @@ def evaluate(spec: str, quick: bool = False, seed: int = SEED,
     }
 
 
-LABELS = {"p_hazard": "P(hazard 30 s)", "unnecessary_braking": "unnecessary braking",
+LABELS = {"p_hazard": "P(hazard 30 s)", "unnecessary_braking": "unnecessary braking", "policy_braking": "policy's own",
           "stops_per_train_hour": "stops / train-h", "demand_changes_per_encounter": "changes / encounter"}
-DIGITS = {"p_hazard": 6, "unnecessary_braking": 4, "stops_per_train_hour": 2, "demand_changes_per_encounter": 2}
+DIGITS = {"p_hazard": 6, "unnecessary_braking": 4, "policy_braking": 4, "stops_per_train_hour": 2,
+          "demand_changes_per_encounter": 2}
 
 
 def _fmt(row: dict, key: str) -> str:
@@ -334,7 +337,7 @@ def hazard_axes(ax, horizon_s: float, title: str) -> None:
     ax.set_yscale("symlog", linthresh=1e-4)
     ax.set_xlim(left=0)
     ax.set_ylim(bottom=0)
-    ax.set_xlabel("unnecessary braking (fraction of obstacle-free time with a demand)")
+    ax.set_xlabel("unnecessary braking (fraction of the time without need with a demand)")
     ax.set_ylabel(f"P(hazard within {horizon_s:g} s)")
     ax.set_title(title)
     ax.grid(alpha=0.3)
@@ -364,16 +367,18 @@ SHARP_SWEEP = "sweep-own-belief-tracking.json"    # the sweep with each point's 
 # The baselines each model's shipped table is held to in `railguard verify` (ACAS X's rule),
 # and on which figures: the verdict on them must be `better`; a Pareto point must meet the
 # same to be recommended. Belief tracking is not among them: judged with its sharp estimate
-# (issue 31) it is safer than both shipped tables in their models, which brake needlessly
-# less (STATED). Model 2 is held to threshold on p_hazard only: since issue 29's obstacle
-# memory its needless braking is no better than threshold's (STATED).
+# (issue 31) it is safer than both shipped tables in their models (STATED: m1 brakes
+# needlessly less; m2, in its world since issue 41, more). Model 2 is held to threshold on
+# p_hazard only: since issue 29's obstacle memory its needless braking is no better than
+# threshold's (STATED).
 ACCEPTED = {"m1": {"threshold": ACCEPTANCE}, "m2": {"threshold": ("p_hazard",)}}
 # The decisions on ACCEPTANCE the README states where a table is not held to `better`: per
 # figure, the decisions that agree with the statement. `railguard verify` checks them at full
 # size; at the quick size (a sixth of the trains) `indistinguishable` also agrees.
 STATED = {("m1", "belief_tracking"): {"p_hazard": ("worse",), "unnecessary_braking": ("better",)},
-          ("m2", "belief_tracking"): {"p_hazard": ("worse",), "unnecessary_braking": ("better",)},
-          # full size, seed 12: +0.0023 +- 0.0027, p 0.048: worse at the edge
+          # full size, seed 12 (issue 41's table and world): +0.00249 +- 0.00087 of low-risk time
+          ("m2", "belief_tracking"): {"p_hazard": ("worse",), "unnecessary_braking": ("worse",)},
+          # full size, seed 12: +0.0085 +- 0.0017 (issue 41; before, +0.0023 +- 0.0027 of obstacle-free time)
           ("m2", "threshold"): {"unnecessary_braking": ("worse", "indistinguishable")}}
 
 
@@ -498,6 +503,10 @@ def _comparison_table(r: dict) -> str:
                      "decision"], rows)
 
 
+def _weights(params: dict, weights: Optional[dict]) -> dict:
+    return {k: params.get(k) for k in (weights or {})}
+
+
 def section(out_dir, quick: bool, progress):
     """`railguard verify` part: the shipped tables against the baselines (ACAS X's rule, by
     paired one-sided tests), and the Pareto frontier each was picked from
@@ -556,19 +565,21 @@ def section(out_dir, quick: bool, progress):
             checks.append(held_out_check(name, progress))
         front_path = FRONTIERS / f"pareto-{name}" / "frontier.json"
         if name in ACCEPTED and not front_path.is_file():
-            checks.append(Check(f"tables {name}: the shipped table is the Pareto sweep's recommended point", False,
+            checks.append(Check(f"tables {name}: the shipped table has the Pareto sweep's recommended weights", False,
                                 f"no frontier at {front_path}"))
         if front_path.is_file():
             front = json.loads(front_path.read_text(encoding="utf-8"))
             fig = pareto.plot(front, out_dir / f"pareto-{name}.png").name
             figs.append(fig)
-            rec = front["recommended"]
-            shipped = decode(read(name)).sha256
-            picked = rec is not None and front["points"][rec].get("sha256") == shipped
+            rec, shipped = front["recommended"], decode(read(name))
+            # the sweep picks the weights; the table shipped at them is its point's or one that
+            # replaced it no worse on any figure (issue 41: docs/models.md section 7)
+            weights = front["points"][rec]["weights"] if rec is not None else None
+            picked = weights is not None and all(shipped.header["params"].get(k) == v for k, v in weights.items())
             if name in ACCEPTED:
-                checks.append(Check(f"tables {name}: the shipped table is the Pareto sweep's recommended point", picked,
-                                    f"shipped {shipped[:12]}, recommended "
-                                    + (f"point {rec} {front['points'][rec].get('sha256', '')[:12]}" if rec is not None else "none")))
+                checks.append(Check(f"tables {name}: the shipped table has the Pareto sweep's recommended weights", picked,
+                                    f"shipped {shipped.sha256[:12]} at {_weights(shipped.header['params'], weights)}, "
+                                    f"recommended point {rec} {weights}"))
             md.append(f"\nPareto sweep ({len(front['points'])} weight vectors; `railguard solve --pareto --model {name}`):\n\n"
                       f"![{name}: Pareto frontier]({fig})\n\n```\n{pareto.render(front)}```\n")
         sharp_path = FRONTIERS / f"pareto-{name}" / SHARP_SWEEP

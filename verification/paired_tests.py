@@ -14,7 +14,7 @@ from .world_metrics import paired
 
 ALPHA = 0.05
 VERDICTS = ("better", "worse", "trade-off", "indistinguishable")
-METRICS = ("p_hazard", "unnecessary_braking", "stops_per_train_hour", "demand_changes_per_encounter")
+METRICS = ("p_hazard", "unnecessary_braking", "policy_braking", "stops_per_train_hour", "demand_changes_per_encounter")
 ACCEPTANCE = ("p_hazard", "unnecessary_braking")   # what ACAS X's acceptance rule reads (DESIGN section 12)
 
 

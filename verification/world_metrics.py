@@ -1,5 +1,13 @@
 """What a policy costs in a seed world, counted per train so that every figure has a
-confidence interval: braking without an obstacle, stops, and demand changes per encounter.
+confidence interval: braking without need, the part of it the policy alone asked for, stops,
+and demand changes per encounter.
+
+"Without need" is the world's to say (`PolicyCost.cycle`): no obstacle on the line (seed
+000), or no obstacle above eq. 11's low risk (seed 001, where obstacles are on the line 75 %
+of the time and mostly far). Every policy runs behind the same supervision (curves, memory,
+fault handling), and where that supervision brakes alike for every policy (seed 001: the
+memory keeps eq. 9's misperceived nearer distances) only `policy_braking` separates them:
+the cycles without need in which the policy asked for braking and no supervision cause did.
 
 Each figure is a ratio of sums over trains (X / Y); trains are independent, so its 95 %
 interval comes from the linearised ratio estimator: SE = sqrt(n / (n - 1) sum (X_i - r Y_i)^2) / sum Y_i.
@@ -16,7 +24,21 @@ import math
 
 import numpy as np
 
+from monitor.core.types import (
+    R_DEADLINE, R_DISPUTE, R_ENVELOPE, R_IMPLAUSIBLE, R_INIT, R_MEMORY, R_PERCEPTOR, R_SAFE_STOP, R_SBI, R_STALE,
+    R_SYSTEM_ERROR, R_TABLE, R_TRAIN_INPUT,
+)
+
 Z95 = 1.96
+# What the supervision brakes for by itself, whatever the policy proposes (monitor.core.types)
+SUPERVISION_CAUSES = (R_ENVELOPE | R_SBI | R_MEMORY | R_SYSTEM_ERROR | R_INIT | R_SAFE_STOP | R_STALE | R_PERCEPTOR
+                      | R_DEADLINE | R_TRAIN_INPUT | R_DISPUTE | R_IMPLAUSIBLE)
+
+
+def policy_alone(reasons: np.ndarray) -> np.ndarray:
+    """Cycles whose brake demand only the policy asked for (R_TABLE, no supervision cause)."""
+    r = np.asarray(reasons, dtype=np.int64)
+    return ((r & R_TABLE) != 0) & ((r & SUPERVISION_CAUSES) == 0)
 
 
 def ratio(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -70,18 +92,23 @@ class PolicyCost:
 
     def __init__(self, n: int, dt: float, encounters: np.ndarray | None = None):
         self.dt = dt
-        self.free = np.zeros(n)              # cycles without an obstacle on the line
+        self.free = np.zeros(n)              # cycles without need to brake (the world's `need`)
         self.brake_free = np.zeros(n)        # ... with a brake demand
+        self.alone_free = np.zeros(n)        # ... that only the policy asked for
         self.stops = np.zeros(n)             # moving -> standstill
         self.changes = np.zeros(n)           # demand different from the cycle before
         self.encounters = np.zeros(n) if encounters is None else np.asarray(encounters, dtype=float).copy()
         self.cycles = np.zeros(n)
         self.prev = np.zeros(n, dtype=np.int64)
 
-    def cycle(self, obstacle: np.ndarray, demand: np.ndarray) -> None:
-        free = ~np.asarray(obstacle, dtype=bool)
+    def cycle(self, need: np.ndarray, demand: np.ndarray, alone: np.ndarray | None = None) -> None:
+        """One cycle: `need` where the world gives a cause to brake, the demand sent, and
+        where that demand came from the policy alone (`policy_alone`; None: nowhere)."""
+        free = ~np.asarray(need, dtype=bool)
         self.free += free
         self.brake_free += free & (demand > 0)
+        if alone is not None:
+            self.alone_free += free & (demand > 0) & np.asarray(alone, dtype=bool)
         self.changes += demand != self.prev
         self.prev = np.asarray(demand, dtype=np.int64).copy()
         self.cycles += 1
@@ -91,7 +118,7 @@ class PolicyCost:
         self.encounters += new_encounters
 
     def figures(self) -> dict:
-        """The three Monte Carlo figures, each with its 95 % half-width (`*_ci`)."""
+        """The four Monte Carlo figures, each with its 95 % half-width (`*_ci`)."""
         out = {}
         for key, (x, y) in self.per_train().items():
             value, ci = ratio(x, y)
@@ -104,5 +131,6 @@ class PolicyCost:
         """figure -> (X, Y) per train, the sums each figure is the ratio of (for `paired`)."""
         hours = self.cycles * self.dt / 3600.0
         return {"unnecessary_braking": (self.brake_free.copy(), self.free.copy()),
+                "policy_braking": (self.alone_free.copy(), self.free.copy()),
                 "stops_per_train_hour": (self.stops.copy(), hours),
                 "demand_changes_per_encounter": (self.changes.copy(), self.encounters.copy())}

@@ -20,7 +20,7 @@ from monitor.tables import read as read_table
 
 from ..fastcore import VectorMonitor, agrees_with_core, zone_alphas, zone_of
 from ..report import Progress
-from ..world_metrics import PolicyCost
+from ..world_metrics import PolicyCost, policy_alone
 
 
 STATE_NAMES = ("Safe", "ObstacleDetected", "AboutToCrash", "Crash")
@@ -276,7 +276,7 @@ def simulate(sc: Scenario, trains: int, seconds: float, seed: int, record: int =
         if k < DISCOUNT_STEPS:
             ret += GAMMA ** k * r_model
         prev_demand = demand
-        cost.cycle(has, demand)
+        cost.cycle(has, demand, policy_alone(reasons))
 
         if rec:
             for key, val in (("present", present), ("distance_dm", dist_dm), ("speed_cms", v_cms), ("demand", demand),
