@@ -67,6 +67,7 @@ class Blocks:
             total = np.asarray((reach @ E.multiply(self.of_state[:, None]).tocsr()).todense())
             out[:, a, :] = np.where(n > 0, total // np.maximum(n, 1), MIXED)
         self.following = out
+        self.possible = [[np.flatnonzero(out[x, a] >= 0) for a in range(A)] for x in range(self.count)]
         return self
 
 

@@ -67,6 +67,10 @@ class LowerBound:
             self._a[: self.n], self._w[: self.n], self._act[: self.n], self._node[: self.n] = a, w, act, node
         return dropped
 
+    def joints(self, dyn: Dynamics, b: np.ndarray) -> list:
+        """u[a][o, s'] = P(s', o | b, a) for every action."""
+        return [dyn.joint(b, a) for a in range(dyn.A)]
+
     def backup(self, dyn: Dynamics, b: np.ndarray, joints: list):
         """The point-based backup at b (bounds.lower_backup over every vector)."""
         return lower_backup(dyn, self.alphas, b, joints)

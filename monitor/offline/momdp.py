@@ -22,12 +22,25 @@ from .bounds import Dynamics, UpperBound
 from .lower_bound import LowerBound
 
 
+def joint(dyn: Dynamics, blocks: Blocks, b: np.ndarray, x: int, a: int) -> np.ndarray:
+    """Dynamics.joint for a belief in block x: only the observations that can follow x
+    under a get a row product (the others are zero there anyway)."""
+    if x == MIXED:
+        return dyn.joint(b, a)
+    poss = blocks.possible[x][a]
+    U = np.zeros((dyn.Z, dyn.S))
+    U[poss] = dyn.predict(b, a)[None, :] * dyn.OT[a][poss]
+    return U
+
+
 def successor_blocks(blocks: Blocks, x: int, a: int, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the non-empty rows of U = the joint of a belief in block x under a, their blocks):
     read from the table when x is one block, found from the rows for a mixed belief."""
-    live = np.flatnonzero(U.any(axis=1))
     if x == MIXED:
+        live = np.flatnonzero(U.any(axis=1))
         return live, blocks.of_rows(U[live])
+    poss = blocks.possible[x][a]
+    live = poss[U[poss].any(axis=1)]
     return live, blocks.following[x, a, live]
 
 
@@ -70,16 +83,15 @@ class BlockLowerBound(LowerBound):
         value p(o) V_lower(b_o)."""
         pick = np.zeros(len(U), dtype=np.int64)
         score = np.zeros(len(U))
-        for x in (np.unique(lab) if len(lab) > 1 else lab):
-            rows = live[lab == x] if len(lab) > 1 else live
-            if x == MIXED:
-                s = U[rows] @ self.alphas.T
-            else:
-                s = U[rows][:, self.blocks.members[x]] @ self.restricted(int(x)).T
-            j = s.argmax(axis=1)
-            pick[rows] = j
-            score[rows] = s[np.arange(len(rows)), j]
+        for o, x in zip(live.tolist(), lab.tolist()):
+            s = self.alphas @ U[o] if x == MIXED else self.restricted(x) @ U[o, self.blocks.members[x]]
+            j = int(s.argmax())
+            pick[o], score[o] = j, s[j]
         return pick, score
+
+    def joints(self, dyn: Dynamics, b: np.ndarray) -> list:
+        x = self.blocks.of(b)
+        return [joint(dyn, self.blocks, b, x, a) for a in range(dyn.A)]
 
     def _row_sums(self, dyn: Dynamics) -> np.ndarray:
         """(A, S) sum_o O[a, s, o]: 1 to within the model's tolerance, kept exact here."""
@@ -126,15 +138,12 @@ class BlockUpperBound:
         self.parts = [UpperBound(fib_q) for _ in range(blocks.count)]
         for part in self.parts:
             part.corner = self.corner                           # one array: corner updates reach all
+        self.size = 0                                           # points in all stores
         self._seq = [[] for _ in range(blocks.count + 1)]       # insertion order, store by store
         self._next = 0
 
     def _store(self, x: int) -> UpperBound:
         return self.mixed if x == MIXED else self.parts[x]
-
-    @property
-    def size(self) -> int:
-        return self.mixed.size + sum(p.size for p in self.parts)
 
     def _all(self) -> list:
         """(seq, belief, value) of every point, oldest first."""
@@ -183,7 +192,7 @@ class BlockUpperBound:
         q = np.empty(dyn.A)
         joints, uj = [], []
         for a in range(dyn.A):
-            U = dyn.joint(b, a)
+            U = joint(dyn, self.blocks, b, x, a)
             live, lab = successor_blocks(self.blocks, x, a, U)
             v = np.zeros(len(U))
             if len(live):
@@ -215,6 +224,7 @@ class BlockUpperBound:
                 store._reset(store._beliefs, store._values)
         else:
             self._store(x)._append(b, value)
+            self.size += 1
             self._seq[x].append(self._next)
             self._next += 1
         return True
@@ -230,4 +240,5 @@ class BlockUpperBound:
                 kept = {id(b) for b in store._beliefs}
                 self._seq[x] = [q for b, q in zip(before, self._seq[x]) if id(b) in kept]
                 dropped += n
+        self.size -= dropped
         return dropped

@@ -211,7 +211,7 @@ def lower_sweep(dyn: Dynamics, lb: LowerBound, beliefs: np.ndarray, clock: Clock
     for b in beliefs[::-1]:
         if clock.over():
             break
-        joints = [dyn.joint(b, a) for a in range(dyn.A)]
+        joints = lb.joints(dyn, b)
         vec, act, val, _, pick = lb.backup(dyn, b, joints)
         if val > lb.value(b) + 1e-12 * max(1.0, abs(val)):
             lb.add(vec, act, b, pick)
