@@ -21,6 +21,7 @@ from monitor.offline.bounds import UpperBound
 from monitor.offline.controller import compile_controller
 from monitor.offline.lower_bound import LowerBound
 from monitor.offline.momdp import BlockLowerBound, BlockUpperBound
+from monitor.offline import solver
 from monitor.offline.solver import SolverSettings, solve
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -153,10 +154,11 @@ def test_split_solver_gives_the_plain_bounds_at_equal_iterations(request, proble
     assert split.lower_bound == pytest.approx(float(split.lower_value(model.b0)[0]), abs=1e-12)
 
 
-def test_split_solver_table_is_worth_its_lower_bound():
+def test_split_solver_table_is_worth_its_lower_bound(monkeypatch):
     """RockSample[4,3] (129 states, 17 blocks): the compiled table, evaluated exactly, is worth
     at least the lower bound at b0, and the split bounds bracket a longer plain run's."""
     model = pomdps.rocksample(n=4, start=(0, 1), rocks=((1, 1), (2, 3), (3, 0)), half_efficiency=3.0)
+    monkeypatch.setattr(solver, "MOMDP_MIN_STATES", 0)          # split even this small model
     sol = solve(model, SolverSettings(max_iterations=30))
     assert sol.blocks == 17
     comp = compile_controller(model, sol)
@@ -167,13 +169,24 @@ def test_split_solver_table_is_worth_its_lower_bound():
     assert comp.value <= longer.upper_bound + tol and sol.upper_bound >= longer.lower_bound - tol
 
 
-def test_every_node_of_the_split_solver_is_worth_its_vector_in_every_state():
+def test_every_node_of_the_split_solver_is_worth_its_vector_in_every_state(monkeypatch):
     """RockSample[3,2] (37 states, 10 blocks): each vector is a valid lower bound in every
     state, also outside the block it was backed up for (Solution.alphas keeps them all)."""
     model = pomdps.rocksample(n=3, start=(0, 1), rocks=((1, 1), (2, 0)), half_efficiency=2.0)
+    monkeypatch.setattr(solver, "MOMDP_MIN_STATES", 0)
     sol = solve(model, SolverSettings(max_iterations=25))
     assert sol.blocks == 10 and len(sol.alphas) > model.shape[1]
     for k, node in enumerate(sol.graph_nodes):
         action, nxt, _ = sol.graph.closure(int(node))
         V = independent_values(model, action, nxt)
         assert np.all(V[0] >= sol.alphas[k] - 1e-9 * np.maximum(1.0, np.abs(sol.alphas[k]))), k
+
+
+def test_small_models_with_blocks_are_solved_plain(m2):
+    """m2's information relaxation (144 states, 36 blocks of 4) is below MOMDP_MIN_STATES:
+    the split would cost more Python steps than the products it skips."""
+    from monitor.offline.models import model2
+
+    relaxed = model2.relaxation(m2[0]).model
+    assert find_blocks(relaxed).count == 36 and relaxed.shape[0] < solver.MOMDP_MIN_STATES
+    assert solve(relaxed, SolverSettings(max_iterations=2)).blocks == 1
