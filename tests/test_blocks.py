@@ -122,17 +122,27 @@ def test_split_bounds_value_beliefs_as_the_plain_ones(tag):
         b[members[0]] += 0.1
         return b / b.sum()
 
+    mixed_support = np.arange(S)
     for step in range(300):
         x = MIXED if step % 10 == 0 else int(rng.integers(blocks.count))
         b = belief(x)
-        if step % 25 == 7:
-            b = np.eye(S)[rng.integers(S)]                              # a corner
+        if x == MIXED:
+            mixed_support = np.flatnonzero(b)
+        if step % 25 == 7:                  # a corner, in a mixed point's support: its slack moves
+            b = np.eye(S)[rng.choice(mixed_support)]
         v = float(plain.value(b[None, :])[0]) - rng.uniform(0, 1)
         assert split.add(b, v) == plain.add(b, v)
         vec = rng.normal(size=S)
         lower_split.add(vec, 0, b, np.zeros(Z, dtype=np.int64))
         lower_plain.add(vec, 0, b, np.zeros(Z, dtype=np.int64))
     probe = np.array([belief(MIXED if i % 5 == 0 else int(rng.integers(blocks.count))) for i in range(200)])
+    whole = rng.dirichlet(np.ones(S), size=20)                          # over every block: all points count
+    within = np.zeros((blocks.count, S))
+    for x, members in enumerate(blocks.members):
+        within[x, members] = rng.dirichlet(np.ones(len(members)))
+    probe = np.vstack([probe, whole, within])
+    assert (plain.sawtooth(whole) < whole @ plain.corner - 1e-6).all()             # the points matter there
+    assert np.allclose(split.sawtooth(probe), plain.sawtooth(probe), rtol=0, atol=1e-12)
     assert np.allclose(split.value(probe), plain.value(probe), rtol=0, atol=1e-12)
     assert np.allclose(split.merged().value(probe), plain.value(probe), rtol=0, atol=1e-12)
     assert np.allclose([lower_split.value(b) for b in probe], [lower_plain.value(b) for b in probe], atol=1e-12)
@@ -152,6 +162,10 @@ def test_split_solver_gives_the_plain_bounds_at_equal_iterations(request, proble
     assert split.lower_bound <= split.upper_bound
     assert len(split.alphas) == len(plain.alphas) and np.allclose(split.alphas, plain.alphas, atol=1e-9)
     assert split.lower_bound == pytest.approx(float(split.lower_value(model.b0)[0]), abs=1e-12)
+    # the same points, in the same order, for the compiler and in the merged upper bound
+    assert split.beliefs.shape == plain.beliefs.shape and np.allclose(split.beliefs, plain.beliefs, atol=1e-12)
+    assert split.upper.size == plain.upper.size and np.allclose(split.upper.values, plain.upper.values, atol=1e-9)
+    assert split.graph.n == plain.graph.n
 
 
 def test_split_solver_table_is_worth_its_lower_bound(monkeypatch):
@@ -159,12 +173,12 @@ def test_split_solver_table_is_worth_its_lower_bound(monkeypatch):
     at least the lower bound at b0, and the split bounds bracket a longer plain run's."""
     model = pomdps.rocksample(n=4, start=(0, 1), rocks=((1, 1), (2, 3), (3, 0)), half_efficiency=3.0)
     monkeypatch.setattr(solver, "MOMDP_MIN_STATES", 0)          # split even this small model
-    sol = solve(model, SolverSettings(max_iterations=30))
+    sol = solve(model, SolverSettings(max_iterations=20))
     assert sol.blocks == 17
     comp = compile_controller(model, sol)
     tol = 1e-9 * abs(sol.lower_bound)
     assert comp.value >= sol.lower_bound - tol
-    longer = solve(model, SolverSettings(max_iterations=150, momdp=False))
+    longer = solve(model, SolverSettings(max_iterations=80, momdp=False))
     assert longer.upper_bound < sol.upper_bound and longer.lower_bound >= sol.lower_bound   # it did get further
     assert comp.value <= longer.upper_bound + tol and sol.upper_bound >= longer.lower_bound - tol
 

@@ -10,7 +10,8 @@ HSVI (Smith & Simmons 2004, 2005): trials from b0 descend by the action with the
 upper Q and the observation with the largest weighted excess gap, then back both bounds
 up on the way back. It is deterministic; Perseus's belief expansion is the only use of
 the seed. The model is used one action at a time (bounds.Dynamics): the (A, Z, S, S)
-kernel T*O is never materialised.
+kernel T*O is never materialised. When the model has a fully observed part (blocks.py) and
+is large enough, HSVI splits both bounds by it (momdp.py): the same values, fewer products.
 """
 from __future__ import annotations
 
