@@ -1,7 +1,7 @@
 """Offline solver benchmarks: solve + compile per model, and bounds at equal time on public POMDPs.
 
 Run: python benchmarks/bench_offline.py [--json] [--repeat N] [--models m1 m2] [--problems tiger75 tiger rs55 tag]
-     [--budget-cap S]
+     [--budget-cap S] [--budget S] [--variants plain momdp]
 
 1. Per model (default plan, pipeline.run): solve + compile wall time, table size, bounds.
    Targets (issue 2 / 12): Model 1 <= 5 s, Model 2 <= 60 s, Model 2 table <= 64 KiB.
@@ -10,7 +10,9 @@ Run: python benchmarks/bench_offline.py [--json] [--repeat N] [--models m1 m2] [
    the table compiled from them (the policy graph; following the witnesses alone, the compile
    before issue 41, beside it), next to the published figures. Published "reward" figures are simulated returns of the solver's policy (an
    estimate of a value between our LB and V*), not bounds; their times are on the authors'
-   2003-2008 machines.
+   2003-2008 machines. Each problem is solved by the variants asked for: 'momdp' (the default
+   solver: both bounds split by the fully observed part, monitor/offline/momdp.py, when the
+   model has one) and 'plain' (SolverSettings(momdp=False)), at the same budget.
 Each problem runs in its own process so its peak RSS (ru_maxrss) is its own.
 Times depend on the machine's load (2 cores, shared with other jobs): figures vary.
 """
@@ -122,7 +124,7 @@ def bench_model(name: str, repeat: int) -> dict:
     }
 
 
-def bench_problem(name: str, cap: float) -> dict:
+def bench_problem(name: str, cap: float, variant: str = "momdp", budget: float | None = None) -> dict:
     from monitor.offline.controller import compile_controller
     from monitor.offline.pipeline import gap_percent
     from monitor.offline.solver import SolverSettings, solve
@@ -131,17 +133,19 @@ def bench_problem(name: str, cap: float) -> dict:
     model = load_problem(name)
     build_s = time.perf_counter() - t0
     times = [p[2] for p in PUBLISHED[name] if p[2] is not None]
-    budget = min(cap, min(times)) if times else min(cap, 5.0)
-    sol = solve(model, SolverSettings(time_budget_s=budget, target_gap=1e-3, max_iterations=10**6, max_beliefs=400))
+    if budget is None:
+        budget = min(cap, min(times)) if times else min(cap, 5.0)
+    sol = solve(model, SolverSettings(time_budget_s=budget, target_gap=1e-3, max_iterations=10**6, max_beliefs=400,
+                                      momdp=variant == "momdp"))
     t0 = time.perf_counter()
     comp = compile_controller(model, sol)
     compile_s = time.perf_counter() - t0
     S, A, Z = model.shape
     return {
-        "problem": name, "title": model.name, "states": S, "actions": A, "observations": Z, "budget_s": budget,
+        "problem": name, "variant": variant, "blocks": sol.blocks, "title": model.name, "states": S, "actions": A, "observations": Z, "budget_s": budget,
         "build_s": build_s, "seconds": sol.seconds, "lower_bound": sol.lower_bound, "upper_bound": sol.upper_bound,
         "solver_gap_percent": gap_percent(sol.upper_bound, sol.lower_bound), "stop_reason": sol.stop_reason,
-        "trials": sol.iterations, "alphas": int(len(sol.alphas)), "upper_points": sol.upper.size,
+        "trials": sol.iterations, "trials_per_s": sol.iterations / sol.seconds, "alphas": int(len(sol.alphas)), "upper_points": sol.upper.size,
         "fib_at_b0": float((sol.upper_q @ model.b0).max()), "peak_rss_mb": peak_rss_mb(),
         "table_value": comp.value, "table_nodes": comp.controller.nodes, "witness_table_value": comp.naive_value,
         "compile_s": compile_s,
@@ -163,17 +167,23 @@ def main() -> None:
     ap.add_argument("--models", nargs="*", default=list(TARGETS), choices=list(TARGETS))
     ap.add_argument("--problems", nargs="*", default=list(PUBLISHED), choices=list(PUBLISHED))
     ap.add_argument("--budget-cap", type=float, default=60.0, help="cap on the equal-time budget (s)")
+    ap.add_argument("--budget", type=float, help="solve each problem this long instead of the published time")
+    ap.add_argument("--variants", nargs="*", default=["momdp", "plain"], choices=["momdp", "plain"],
+                    help="solver variants per problem (momdp: the default, split by the fully observed part)")
     ap.add_argument("--one-model", help=argparse.SUPPRESS)
+    ap.add_argument("--variant", default="momdp", help=argparse.SUPPRESS)
     ap.add_argument("--one-problem", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one_model:
         print(json.dumps(bench_model(args.one_model, args.repeat)))
         return
     if args.one_problem:
-        print(json.dumps(bench_problem(args.one_problem, args.budget_cap)))
+        print(json.dumps(bench_problem(args.one_problem, args.budget_cap, args.variant, args.budget)))
         return
     models_rows = [in_subprocess(["--one-model", m, "--repeat", str(args.repeat)]) for m in args.models]
-    problem_rows = [in_subprocess(["--one-problem", p, "--budget-cap", str(args.budget_cap)]) for p in args.problems]
+    budget = [] if args.budget is None else ["--budget", str(args.budget)]
+    problem_rows = [in_subprocess(["--one-problem", p, "--budget-cap", str(args.budget_cap), "--variant", v, *budget])
+                    for p in args.problems for v in args.variants]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
     if args.json:
         print(json.dumps({"machine": machine, "models": models_rows, "problems": problem_rows}))
@@ -189,14 +199,18 @@ def main() -> None:
     print("gap %: (upper - lower) / |upper|, the solver's own; cert. %: (upper - table's exact value) / |upper|")
     print()
     print("public benchmarks: our bounds at b0 after the published solver's time (capped), vs published figures")
-    for r in problem_rows:
-        print(f"{r['title']} ({r['states']} states, {r['actions']} actions, {r['observations']} observations): "
-              f"budget {r['budget_s']:.1f} s, used {r['seconds']:.1f} s, stop {r['stop_reason']}, {r['trials']} trials, "
-              f"peak RSS {r['peak_rss_mb']:.0f} MB")
+    for i, r in enumerate(problem_rows):
+        last = i + 1 == len(problem_rows) or problem_rows[i + 1]["problem"] != r["problem"]
+        print(f"{r['title']} ({r['states']} states, {r['actions']} actions, {r['observations']} observations), "
+              f"{r['variant']} ({r['blocks']} block{'s' if r['blocks'] > 1 else ''}): "
+              f"budget {r['budget_s']:.1f} s, used {r['seconds']:.1f} s, stop {r['stop_reason']}, {r['trials']} trials "
+              f"({r['trials_per_s']:.1f}/s), peak RSS {r['peak_rss_mb']:.0f} MB")
         print(f"    ours (hsvi)  LB {r['lower_bound']:10.4f}   UB {r['upper_bound']:10.4f}   gap {r['solver_gap_percent']:.2f} %"
               f"   (FIB {r['fib_at_b0']:.4f}, {r['alphas']} alphas, {r['upper_points']} UB points)")
         print(f"    ours (table) {r['table_value']:10.4f}   exact value of the compiled table, {r['table_nodes']} nodes, "
               f"compiled in {r['compile_s']:.1f} s (following the witnesses alone: {r['witness_table_value']:.4f})")
+        if not last:
+            continue
         if any(p["kind"] == "optimum" for p in r["published"]):
             print(f"    published optimum within our certified bounds: {'yes' if r['optimum_within_bounds'] else 'NO'}")
         for p in r["published"]:

@@ -304,6 +304,10 @@ class UpperBound:
         out[keep] = np.minimum(out[keep], p[keep] * self.sawtooth(U[keep] / p[keep, None]))
         return out
 
+    def backup(self, dyn: "Dynamics", b: np.ndarray, sig: float = 1.0):
+        """upper_backup at b (the solver calls the bound's own, momdp.py has another)."""
+        return upper_backup(dyn, self, b, sig)
+
     # ------------------------------------------------------------------ maintenance
 
     def prune(self) -> int:
