@@ -496,6 +496,16 @@ def test_evaluate_errors_are_one_line(tmp_path):
     assert f"{bad}: not a railguard table" in proc.stderr
 
 
+def test_the_shipped_table_must_have_the_recommended_weights_and_be_no_riskier_than_its_point():
+    shipped = decode((ROOT / "monitor" / "tables" / "m2.table.rgt").read_bytes())
+    front = {"recommended": 1, "points": [{"weights": {"collision_weight": 0.25}, "p_hazard": 5e-5},
+                                          {"weights": {"collision_weight": 0.5}, "p_hazard": 4.14e-5}]}
+    assert ev.sweep_check("m2", front, shipped, 3.14e-5).passed
+    assert not ev.sweep_check("m2", front, shipped, 4.2e-5).passed             # riskier than the point
+    assert not ev.sweep_check("m2", {**front, "recommended": 0}, shipped, 3.14e-5).passed   # other weights
+    assert not ev.sweep_check("m2", {**front, "recommended": None}, shipped, 3.14e-5).passed
+
+
 def test_pareto_frontier_keeps_only_unbeaten_points():
     pts = [{"p_hazard": 0.1, "unnecessary_braking": 0.1}, {"p_hazard": 0.2, "unnecessary_braking": 0.05},
            {"p_hazard": 0.2, "unnecessary_braking": 0.2}, {"p_hazard": 0.1, "unnecessary_braking": 0.1}]

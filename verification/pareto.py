@@ -221,16 +221,16 @@ def render(result: dict) -> str:
     wide = max([48, *(len(w) + 2 for w in names)])
     verdicts = all("against" in p for p in result["points"])
     own = verdicts and all("own_belief_tracking" in p for p in result["points"])
-    mine = all("policy_braking" in p for p in result["points"])      # sweeps since issue 41
+    policy_own = all("policy_braking" in p for p in result["points"])      # sweeps since issue 41
     bases = [b for b in ("threshold", "belief_tracking") if b in result["baselines"]] + ([REFERENCE] if own else [])
     heads = {REFERENCE: "vs BT, default weights", "belief_tracking": "vs belief_tracking (own)" if own else "vs belief_tracking"}
-    lines.append(f"{'#':>3} {'weights':<{wide}}{'p_hazard':>12}{'unnecessary':>14}" + (f"{'policy own':>12}" if mine else "")
+    lines.append(f"{'#':>3} {'weights':<{wide}}{'p_hazard':>12}{'unnecessary':>14}" + (f"{'policy own':>12}" if policy_own else "")
                  + f"{'nodes':>7}" + (f"{'own BT p':>12}" if own else "") + "  "
                  + ("".join(f"  {heads.get(b, 'vs ' + b):<26}" for b in bases) if verdicts else ""))
     for i, (p, w) in enumerate(zip(result["points"], names)):
         mark = ("*" if i == result["recommended"] else "F") if i in result["frontier"] else " "
         line = (f"{i:>3} {w:<{wide}}{p['p_hazard']:>12.6f}{p['unnecessary_braking']:>14.5f}"
-                + (f"{p['policy_braking']:>12.5f}" if mine else "") + f"{p['nodes']:>7}")
+                + (f"{p['policy_braking']:>12.5f}" if policy_own else "") + f"{p['nodes']:>7}")
         line += (f"{p['own_belief_tracking']['p_hazard']:>12.6f}" if own else "") + f"  {mark}"
         if verdicts:
             for b in bases:
@@ -243,7 +243,7 @@ def render(result: dict) -> str:
         ci = b.get("p_hazard_ci") or 0.0
         name = f"{name} (default weights)" if own and name == PREFERRED else name
         lines.append(f"    {name:<{wide}}{b['p_hazard']:>12.6f}{b['unnecessary_braking']:>14.5f}"
-                     + (f"{b['policy_braking']:>12.5f}" if mine else "")
+                     + (f"{b['policy_braking']:>12.5f}" if policy_own else "")
                      + (f"  (p_hazard ± {ci:.2g}, sharp estimate)" if ci else ""))
     lines.append("")
     held = " and ".join(f"{b} on {' and '.join(f)}" for b, f in evaluate.ACCEPTED.get(result["model"], {}).items()) \
@@ -254,8 +254,8 @@ def render(result: dict) -> str:
         lines.append(f"F: on the frontier; *: recommended (on the frontier, better than {held}; among those better than "
                      f"{PREFERRED} too where there are any; "
                      + ("the safest of those whose unnecessary braking the paired test cannot tell from the least)"
-                        if mine else "least unnecessary braking)"))
-        if mine:
+                        if policy_own else "least unnecessary braking)"))
+        if policy_own:
             lines.append("policy own: the share of the time without need in which the policy alone asked for braking "
                          "(no supervision cause: what the policy adds to the curves' and the memory's braking)")
         if own:
