@@ -100,6 +100,7 @@ class CanBusLib:
             "rg_canbus_next_ns": ([vp], i64),
             "rg_canbus_advance": ([vp, i64, ctypes.POINTER(_Event), i32], i32),
             "rg_canbus_frame_bits": ([fp, i32p, i32p], i32),
+            "rg_canbus_frame_wire": ([fp, ctypes.POINTER(ctypes.c_uint8), i32], i32),
             "rg_canbus_frame_ns": ([vp, fp], i64),
             "rg_canbus_stats": ([vp, i32p], ctypes.POINTER(_Stats)),
             "rg_canbus_busy_ns": ([vp], i64),
@@ -123,6 +124,15 @@ class CanBusLib:
         if self.lib.rg_canbus_frame_bits(ctypes.byref(c), ctypes.byref(nom), ctypes.byref(dat)) < 0:
             raise ValueError(f"not a valid frame: {f}")
         return nom.value, dat.value
+
+    def frame_wire(self, f: Frame) -> list[int]:
+        """The bits on the wire, SOF to the end of EOF (0 dominant, the ACK slot acknowledged)."""
+        c = _c_frame(f)
+        out = (ctypes.c_uint8 * 768)()
+        n = self.lib.rg_canbus_frame_wire(ctypes.byref(c), out, len(out))
+        if n < 0:
+            raise ValueError(f"not a valid frame: {f}")
+        return list(out[:n])
 
     def bus(self, nodes: int, nominal_bps: int = 500_000, data_bps: int = 2_000_000) -> "CanBusC":
         return CanBusC(self, nodes, nominal_bps, data_bps)

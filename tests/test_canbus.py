@@ -80,13 +80,14 @@ def header(f: Frame) -> tuple[list[int], int]:
     return head, brs_at
 
 
-def ref_bits(f: Frame) -> tuple[int, int]:
-    """(nominal, data-rate) bits from SOF to the end of EOF."""
+def ref_wire(f: Frame) -> tuple[list[int], int]:
+    """The bits from SOF to the end of EOF (ACK slot acknowledged), and how many of them go at
+    the data bit rate."""
     raw, brs_at = header(f)
-    tail = 1 + 1 + 1 + 7                                       # CRC delimiter, ACK, ACK delimiter, EOF
+    tail = [1, 0, 1] + [1] * 7                                 # CRC delimiter, ACK, ACK delimiter, EOF
     if not f.fd:
         stream, _, _ = stuff(raw + crc(raw, 15, 0x4599, 0), after_last=True)
-        return len(stream) + tail, 0
+        return stream + tail, 0
     stream, where, count = stuff(raw, after_last=False)
     sc = count % 8
     gray = sc ^ (sc >> 1)
@@ -99,11 +100,14 @@ def ref_bits(f: Frame) -> tuple[int, int]:
         if i % 4 == 0:
             field.append(1 - (field[-1] if field else stream[-1]))   # fixed stuff bit
         field.append(b)
-    total = len(stream) + len(field)
-    if not f.brs:
-        return total + tail, 0
-    nominal = where[brs_at] + 1
-    return nominal + tail, total - nominal
+    total = stream + field
+    return total + tail, (len(total) - where[brs_at] - 1 if f.brs else 0)
+
+
+def ref_bits(f: Frame) -> tuple[int, int]:
+    """(nominal, data-rate) bits from SOF to the end of EOF."""
+    wire, data = ref_wire(f)
+    return len(wire) - data, data
 
 
 def test_reference_crcs_give_the_catalogue_check_values():
@@ -139,6 +143,8 @@ def frames(draw):
 @given(frames())
 def test_frame_bits_equal_the_reference(lib, f):
     assert lib.frame_bits(f) == ref_bits(f)
+    wire = lib.frame_wire(f)
+    assert wire == ref_wire(f)[0] and len(wire) <= 768           # the CRC values too (FD: fixed length)
 
 
 @pytest.mark.parametrize("fd", [False, True])
@@ -150,6 +156,7 @@ def test_every_length_and_pattern(lib, fd):
             for f in (Frame(0x000, data, fd=fd), Frame(0x7FF, data, fd=fd, brs=fd),
                       Frame(0x1FFFFFFF, data, ide=True, fd=fd, brs=fd), Frame(0, data, ide=True, fd=fd)):
                 assert lib.frame_bits(f) == ref_bits(f), f
+                assert lib.frame_wire(f) == ref_wire(f)[0], f
 
 
 def test_the_hand_checked_figures(lib):
@@ -225,6 +232,13 @@ def test_same_instant_arbitrates_together_and_a_started_frame_is_not_preempted(l
     assert ids == [(0x010, 1000), (0x001, first), (0x020, first + ns(Frame(0x001)) + 3 * BIT)]
 
 
+def test_equal_ids_on_two_nodes_go_to_the_lowest_node_first(lib):
+    bus = lib.bus(3)
+    bus.submit(2, Frame(0x010, b"\x02"), 0)
+    bus.submit(1, Frame(0x010, b"\x01"), 0)
+    assert [e.node for e in bus.run(10**8)] == [1, 2]
+
+
 def test_a_node_offers_its_lowest_id_fifo_among_equals(lib):
     bus = lib.bus(2)
     for i, fid in enumerate((0x300, 0x100, 0x100, 0x200)):
@@ -270,6 +284,7 @@ def test_a_flood_at_0x000_starves_brake_demand_until_it_ends(lib):
     floods = [e for e in events if e.frame.id == 0x000]
     assert all(e.end_ns < start for e in floods)
     assert [e.start_ns for e in floods] == [k * period for k in range(len(floods))]
+    assert bus.stats()[0x000].max_delay_ns == 3 * BIT           # the babbler re-queues at each EOF
     assert bus.busy_ns() == start + ns(Frame(0x010, b"\x01" * 8)) + 3 * BIT   # a full bus until then
 
 

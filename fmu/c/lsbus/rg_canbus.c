@@ -33,6 +33,8 @@
 typedef struct {
     int32_t last, run, dynamic, fd, data_phase, nom, dat;
     uint32_t crc, crc_top, crc_mask, crc_poly;
+    uint8_t *out;          /* the bits themselves, when asked for (rg_canbus_frame_wire) */
+    int32_t cap;
 } wire;
 
 static void crc_bit(wire *w, int32_t bit)
@@ -44,6 +46,7 @@ static void crc_bit(wire *w, int32_t bit)
 
 static void put(wire *w, int32_t bit)
 {
+    if (w->out != NULL && w->nom + w->dat < w->cap) w->out[w->nom + w->dat] = (uint8_t)bit;
     if (w->data_phase) w->dat++; else w->nom++;
     w->run = (bit == w->last) ? w->run + 1 : 1;
     w->last = bit;
@@ -85,12 +88,14 @@ static int32_t valid(const rg_can_frame *f)
     return fd_dlc(f->len) >= 0;
 }
 
-int32_t rg_canbus_frame_bits(const rg_can_frame *f, int32_t *nominal_bits, int32_t *data_bits)
+static int32_t frame_stream(const rg_can_frame *f, int32_t *nominal_bits, int32_t *data_bits, uint8_t *out, int32_t cap)
 {
     wire w;
     int32_t i, dlc, width;
     if (!valid(f)) return -1;
     memset(&w, 0, sizeof w);
+    w.out = out;
+    w.cap = cap;
     w.last = -1;
     w.fd = f->fd;
     width = !f->fd ? 15 : (f->len <= 16 ? 17 : 21);
@@ -140,10 +145,22 @@ int32_t rg_canbus_frame_bits(const rg_can_frame *f, int32_t *nominal_bits, int32
         }
     }
     w.data_phase = 0;
-    w.nom += 10;                                        /* CRC delimiter, ACK, ACK delimiter, EOF(7) */
+    put(&w, 1);                                         /* CRC delimiter */
+    put(&w, 0);                                         /* ACK slot, as a receiver acknowledges it */
+    for (i = 0; i < 8; i++) put(&w, 1);                 /* ACK delimiter, EOF(7) */
     if (nominal_bits) *nominal_bits = w.nom;
     if (data_bits) *data_bits = w.dat;
     return w.nom + w.dat;
+}
+
+int32_t rg_canbus_frame_bits(const rg_can_frame *f, int32_t *nominal_bits, int32_t *data_bits)
+{
+    return frame_stream(f, nominal_bits, data_bits, NULL, 0);
+}
+
+int32_t rg_canbus_frame_wire(const rg_can_frame *f, uint8_t *bits, int32_t max)
+{
+    return frame_stream(f, NULL, NULL, bits, max);
 }
 
 static int64_t bits_ns(int64_t bits, int64_t bps)
@@ -279,7 +296,7 @@ static int32_t pick(const rg_canbus *b, rg_canbus_tx *tx)
 {
     int64_t t0 = INT64_MAX;
     int32_t n, i, best_node = -1, best_slot = -1;
-    uint32_t best_key = 0, best_seq = 0;
+    uint32_t best_key = 0;
     for (n = 0; n < b->nodes; n++) {
         const rg_canbus_node *nd = &b->node[n];
         for (i = 0; i < RG_CANBUS_QUEUE; i++)
@@ -303,10 +320,9 @@ static int32_t pick(const rg_canbus *b, rg_canbus_tx *tx)
             if (slot == -2 || k < key || (k == key && slot >= 0 && q->seq < seq)) { slot = i; key = k; seq = q->seq; }
         }
         if (slot != -2 && (best_node < 0 || key < best_key)) {
-            best_node = n; best_slot = slot; best_key = key; best_seq = seq;
+            best_node = n; best_slot = slot; best_key = key;
         }
     }
-    (void)best_seq;
     memset(tx, 0, sizeof *tx);
     tx->node = best_node;
     tx->slot = best_slot;

@@ -107,6 +107,10 @@ int32_t rg_canbus_advance(rg_canbus *b, int64_t now_ns, rg_canbus_event *out, in
 /* Bits on the wire from SOF to the end of EOF, stuff bits included (intermission not); -1 if
  * the frame is invalid. *data_bits: those sent at the data bit rate (fd with brs), else 0. */
 int32_t rg_canbus_frame_bits(const rg_can_frame *f, int32_t *nominal_bits, int32_t *data_bits);
+/* The bits themselves, SOF to the end of EOF (0 dominant, the ACK slot as acknowledged), into
+ * bits[0..max); returns the count (as rg_canbus_frame_bits), -1 if invalid. */
+#define RG_CANBUS_MAX_BITS 768
+int32_t rg_canbus_frame_wire(const rg_can_frame *f, uint8_t *bits, int32_t max);
 /* The frame's duration (SOF to the end of EOF) on this bus; -1 if invalid. */
 int64_t rg_canbus_frame_ns(const rg_canbus *b, const rg_can_frame *f);
 const rg_canbus_id_stats *rg_canbus_stats(const rg_canbus *b, int32_t *count);
