@@ -54,11 +54,13 @@ def compiler() -> str:
     return cc
 
 
-def compile_binary(sources_dir: Path, files: list[str], output: Path, defines: list[str] = ()) -> None:
+def compile_binary(sources_dir: Path, files: list[str], output: Path, defines: list[str] = (),
+                   libraries: list[str] = ()) -> None:
     """gcc the flat source folder into a shared library; warnings are errors."""
     output.parent.mkdir(parents=True, exist_ok=True)
     cmd = [compiler(), *CFLAGS, "-shared", *(f"-D{d}" for d in defines), f"-I{fmi_include_dir()}",
-           f"-I{sources_dir}", *(str(sources_dir / f) for f in files), "-o", str(output), "-lm"]
+           f"-I{sources_dir}", *(str(sources_dir / f) for f in files), "-o", str(output), "-lm",
+           *libraries]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         raise BuildError(f"compiling {output.name} failed:\n{res.stderr.strip()}")
