@@ -165,13 +165,14 @@ class NetworkFmu:
     extra_files: tuple = ()          # (name, text) generated into sources
     resources: tuple = ()            # (name, bytes) into resources/
     libraries: tuple = ()            # extra linker flags
+    token_parts: tuple = ()          # what else the instantiation token is derived from (a table's hash)
 
 
 def build(spec: NetworkFmu, out: Path) -> Path:
     """Stage the sources, generate the XML, compile the x86_64-linux binary, zip to `out`."""
     variables = list(spec.variables)
     token = generate.token(spec.identifier, "lsbus", *(f"{v.name}:{v.type}:{v.causality}:{v.start!r}" for v in variables),
-                           *(n for n, _ in spec.extra_files), *(t for _, t in spec.extra_files))
+                           *spec.token_parts, *(n for n, _ in spec.extra_files))
     with tempfile.TemporaryDirectory(prefix="railguard-netfmu-") as tmp:
         folder = Path(tmp)
         src = folder / "sources"

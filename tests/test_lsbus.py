@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import csv
 import ctypes
-import os
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
