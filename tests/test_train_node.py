@@ -62,16 +62,18 @@ def run(system, name: str, duration: float, starts: dict | None = None):
     return {n: result[n][-1] for n in result.dtype.names}, rows
 
 
-def brake_demands(rows):
-    """(end_s, Cycle, Level) of every BrakeDemand delivered (secured frames: the payload first)."""
+def decoded(rows, frame_id: int):
+    """(end_s, raw signals) of every frame_id delivered (secured frames: the payload first)."""
     import cantools
     db = cantools.database.load_file(str(resources.files("can_bus").joinpath("railguard.dbc")))
-    out = []
-    for r in rows:
-        if r["id"] == "0x010" and r["kind"] == "delivered":
-            d = db.decode_message(0x10, bytes.fromhex(r["data"])[:8], decode_choices=False)
-            out.append((float(r["end_s"]), d["Cycle"], d["Level"]))
-    return out
+    return [(float(r["end_s"]), db.decode_message(frame_id, bytes.fromhex(r["data"])[:8], decode_choices=False,
+                                                  scaling=False))
+            for r in rows if r["id"] == f"0x{frame_id:03X}" and r["kind"] == "delivered"]
+
+
+def brake_demands(rows):
+    """(end_s, Cycle, Level) of every BrakeDemand delivered."""
+    return [(t, d["Cycle"], d["Level"]) for t, d in decoded(rows, 0x10)]
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +110,10 @@ def test_the_monitor_node_demands_what_the_signal_monitor_demands_cycle_by_cycle
     assert got == expected
     assert {level for _, level in got} >= {0, 1} and max(level for _, level in got) == signal.max_demand
     assert final["demand_frames"] == len(got) and final["applied_cycle"] == got[-2][0]   # the last one acts next
+    # what it saw: the voted distance (dm), the table node and the mode of every cycle (MonitorStatus)
+    status = [(d["VotedDistance"], d["Node"], d["Mode"]) for _, d in decoded(rows, 0x40)]
+    signal_status = [(r[c["voted_distance_dm"]], r[c["node"]], r[c["mode"]]) for r in signal.rows[::ratio]]
+    assert status == signal_status and len({v for v, _, _ in status}) > 100
 
 
 def test_a_silent_channel_sends_nothing(closed, scen):
