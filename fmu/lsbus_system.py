@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+import sys
 import tempfile
+from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -106,6 +109,22 @@ class Node:
     terminal: str = "CAN"
 
 
+@contextmanager
+def quiet_stdout():
+    """The container runtime and the toolbox print to the process's stdout; a command's stdout
+    is its own (its --json line), so their lines go to stderr meanwhile."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def build_container(nodes: list[Node], bus: Path, out: Path, step_s: float, starts: dict | None = None,
                     outputs: list[tuple[str, str, str]] = ()) -> Path:
     """fmucontainer: the bus simulation and the nodes, node k's terminal linked to the bus's
@@ -131,8 +150,9 @@ def build_container(nodes: list[Node], bus: Path, out: Path, step_s: float, star
         description.write_text(json.dumps(data, indent=2))
         logging.getLogger("fmu_manipulation_toolbox").setLevel(logging.WARNING)
         try:
-            assembly = Assembly(str(description), fmu_directory=folder)
-            assembly.make_fmu(fmi_version=3)
+            with quiet_stdout():
+                assembly = Assembly(str(description), fmu_directory=folder)
+                assembly.make_fmu(fmi_version=3)
         except (AssemblyError, FMUContainerError, FileNotFoundError) as exc:
             raise BuildError(f"fmucontainer refused the system: {exc}") from None
     if not out.exists():
@@ -145,9 +165,10 @@ def run_container(container: Path, stop_s: float, output_interval: Optional[floa
     Event Mode); returns FMPy's result array of the container's outputs."""
     from fmpy import simulate_fmu
     try:
-        return simulate_fmu(str(container), stop_time=stop_s, step_size=STEP_S,
-                            output_interval=output_interval or max(stop_s / 100, STEP_S), use_event_mode=False,
-                            fmi_type="CoSimulation")
+        with quiet_stdout():
+            return simulate_fmu(str(container), stop_time=stop_s, step_size=STEP_S,
+                                output_interval=output_interval or max(stop_s / 100, STEP_S), use_event_mode=False,
+                                fmi_type="CoSimulation")
     except Exception as exc:                    # FMPy raises plain Exceptions for FMU call failures
         raise BuildError(f"the container failed in FMPy: {exc}") from None
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from monitor.tables import DEFAULT
 
-from .. import options, output
+from .. import options
 from ..setup import braking_config, table_bytes
 
 

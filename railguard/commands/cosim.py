@@ -7,6 +7,7 @@ import tempfile
 from pathlib import Path
 
 from .. import options, output
+from ..errors import UserError
 from ..setup import table_bytes
 from .scenarios import shipped_help
 
@@ -41,6 +42,14 @@ def cosim(args: argparse.Namespace) -> int:
         from monitor.declaration import load
 
         scen = scenario.with_braking(scen, load(args.braking), args.braking)
+    if args.bus == "ls-bus":
+        from .cosim_bus import cosim_ls_bus
+
+        return cosim_ls_bus(args, scen)
+    bus_only = [f"--{n.replace('_', '-')}" for n in ("flood_id", "flood_start", "flood_stop", "error_id", "error_count",
+                                                      "keys", "unsecured") if getattr(args, n) is not None and getattr(args, n) is not False]
+    if bus_only:
+        raise UserError(f"{', '.join(bus_only)}: options of --bus ls-bus (the signal co-simulation has no frames)")
     out = Path(args.out)
     with tempfile.TemporaryDirectory(prefix="railguard-cosim-") as tmp:
         monitor_fmu = args.monitor_fmu or build.build_monitor(table_bytes(args.table or scen.table), args.fmi, tmp)
@@ -67,7 +76,12 @@ def register(sub) -> None:
         help="co-simulate the train-dynamics FMU and the monitor FMU in FMPy",
         description="Build both FMUs (unless given), close the loop in FMPy with a master over FMPy's slave "
                     "classes (train every --step, monitor every 100 ms), write a CSV of all signals and a plot, "
-                    "and print the outcome and the speed as a real-time factor. FMU log lines go to stderr.",
+                    "and print the outcome and the speed as a real-time factor. FMU log lines go to stderr. "
+                    "With --bus ls-bus the monitor and the train are network FMUs exchanging the DBC frames of "
+                    "vcan0 through FMI-LS-BUS CAN terminals and our bus simulation FMU (arbitration by ID, bit "
+                    "timing at 500 kbit/s, transmit queues, error frames, a babbling node), packed by "
+                    "fmu-manipulation-toolbox's fmucontainer and run by FMPy; the summary gives the queue delay "
+                    "per ID and the bus load, and an SSP of the same system is written (docs/fmu.md).",
         epilog=lambda: shipped_help("cosim"),
     )
     from fmu.scenario import DEFAULT
@@ -85,7 +99,21 @@ def register(sub) -> None:
     c.add_argument("--braking", metavar="FILE.toml", help=options.BRAKING_HELP + "; replaces the scenario's [braking]")
     c.add_argument("--demand-delay", type=int, metavar="CYCLES",
                    help="monitor cycles before the train acts on a demand (default: the scenario's, else 1: as on CAN)")
+    c.add_argument("--bus", choices=["signals", "ls-bus"], default="signals",
+                   help="signals: the FMUs' signals in a master loop; ls-bus: CAN frames over the simulated bus "
+                        "(FMI-LS-BUS) (default: %(default)s)")
+    g = c.add_argument_group("--bus ls-bus")
+    g.add_argument("--flood-id", type=lambda x: int(x, 0), metavar="ID",
+                   help="a babbling node sends this ID back to back (0x000 outranks every frame: BrakeDemand "
+                        "starves) (default: none)")
+    g.add_argument("--flood-start", type=float, metavar="S", help="when the babbling node starts (default: 0)")
+    g.add_argument("--flood-stop", type=float, metavar="S", help="when it stops (default: never)")
+    g.add_argument("--error-id", type=lambda x: int(x, 0), metavar="ID",
+                   help="the next transmissions of this ID end in an error frame and are sent again (default: none)")
+    g.add_argument("--error-count", type=options.positive_int, metavar="N",
+                   help="how many of them (default: 1 with --error-id)")
+    options.add_security(g)
     options.add_out(c, what="folder for the CSV and the plot")
     c.add_argument("--no-plot", action="store_true", help="do not draw the plot")
     options.add_json(c, "print the outcome as one JSON object")
-    c.set_defaults(func=cosim)
+    c.set_defaults(func=cosim, signal_defaults={"fmi": 2, "step": 0.01})

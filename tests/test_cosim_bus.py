@@ -1,0 +1,85 @@
+"""`railguard cosim SCENARIO --bus ls-bus` as a user runs it (issue 42): the monitor and the
+train as network FMUs on the simulated CAN bus stop the train where the signal co-simulation
+does; a babbling node at 0x000 starves BrakeDemand and the train's receiver brakes; the SSP it
+writes is the same system."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from fmu.bus_timing import read_trace
+
+
+def railguard(*args, check=True):
+    res = subprocess.run([sys.executable, "-m", "railguard", *args], capture_output=True, text=True)
+    if check:
+        assert res.returncode == 0, res.stderr[-2000:]
+    return res
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cosim-bus")
+    signal = json.loads(railguard("cosim", "static-obstacle", "--out", str(out / "signal"), "--json").stdout)
+    bus = json.loads(railguard("cosim", "static-obstacle", "--bus", "ls-bus", "--out", str(out / "bus"),
+                               "--json").stdout)
+    flood = json.loads(railguard("cosim", "static-obstacle", "--bus", "ls-bus", "--flood-id", "0x000",
+                                 "--flood-start", "20", "--flood-stop", "22", "--out", str(out / "flood"),
+                                 "--json").stdout)
+    return out, signal, bus, flood
+
+
+def test_over_the_bus_the_train_stops_where_the_signal_cosimulation_stops_it(runs):
+    _, signal, bus, _ = runs
+    assert bus["outcome"] == signal["outcome"] == "stopped"
+    assert bus["margin_m"] == pytest.approx(signal["margin_m"], abs=1e-3)
+    assert bus["first_brake_s"] == pytest.approx(signal["first_brake_s"], abs=1e-9)
+    assert bus["secured"] and bus["receiver_brake_s"] is None
+    assert bus["brake_demand_max_queue_delay_ms"] == 0.0          # BrakeDemand has the bus's highest priority
+    for name in ("csv", "trace", "plot", "container", "ssp"):
+        assert (runs[0] / "bus").exists() and __import__("pathlib").Path(bus[name]).is_file(), name
+
+
+def test_a_flood_at_0x000_starves_brake_demand_and_the_receiver_brakes(runs):
+    _, _, bus, flood = runs
+    rows = read_trace(flood["trace"])
+    brake = [r for r in rows if r["id"] == "0x010" and r["kind"] == "delivered"]
+    last = max(float(r["end_s"]) for r in brake if float(r["end_s"]) < 20.0)
+    assert not any(20.0 < float(r["start_s"]) < 22.0 for r in brake)        # nothing gets through the flood
+    assert flood["brake_demand_max_queue_delay_ms"] > 1900                    # frames queued since 20 s left at 22 s
+    # the train model's alive timeout (0.3 s) on its 10 ms grid, after the last BrakeDemand it got
+    assert last + 0.3 <= flood["receiver_brake_s"] <= last + 0.3 + 0.1
+    assert flood["outcome"] == "stopped" and flood["stop_position_m"] < bus["stop_position_m"] - 50
+    assert flood["peak_load_100ms"] == 1.0
+
+
+def test_the_ssp_is_the_system_that_ran(runs, tmp_path):
+    """fmucontainer builds a container from the SSP; run by FMPy it stops the train where the
+    command's container did."""
+    from fmu_manipulation_toolbox.assembly import Assembly
+
+    from fmu.lsbus_system import STEP_S, quiet_stdout, run_container
+    _, _, bus, _ = runs
+    ssp = tmp_path / "system.ssp"
+    ssp.write_bytes(open(bus["ssp"], "rb").read())
+    with quiet_stdout():
+        Assembly("system.ssp", fmu_directory=tmp_path, default_step_size=STEP_S, default_sequential=True).make_fmu(
+            fmi_version=3)
+    result = run_container(tmp_path / "system.fmu", 60.0, 1.0)
+    assert result["train.position"][-1] == pytest.approx(bus["stop_position_m"], abs=1e-3)   # the summary rounds to mm
+    assert result["monitor.cycle"][-1] == 600
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--bus", "ls-bus", "--step", "0.05"], "--step: options of the signal co-simulation"),
+    (["--flood-id", "0"], "--flood-id: options of --bus ls-bus"),
+    (["--bus", "ls-bus", "--flood-id", "0x800"], "11-bit CAN identifier"),
+    (["--bus", "ls-bus", "--flood-start", "3"], "need --flood-id"),
+    (["--bus", "ls-bus", "--flood-id", "0", "--flood-start", "5", "--flood-stop", "4"], "must be after"),
+])
+def test_wrong_options_are_one_line_and_exit_2(args, message, tmp_path):
+    res = railguard("cosim", "static-obstacle", *args, "--out", str(tmp_path), check=False)
+    assert res.returncode == 2 and message in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
