@@ -110,19 +110,23 @@ class Node:
 
 
 @contextmanager
-def quiet_stdout():
-    """The container runtime and the toolbox print to the process's stdout; a command's stdout
-    is its own (its --json line), so their lines go to stderr meanwhile."""
+def quiet_stdout(log: Optional[Path] = None):
+    """The container runtime (C) and the toolbox print to the process's stdout, the runtime's
+    start-up lines with alarming tags ("[ERROR] Solver configure...."); a command's stdout is
+    its own (its --json line), so while they run fd 1 goes to `log` (appended), else stderr."""
     sys.stdout.flush()
     saved = os.dup(1)
+    target = open(log, "a") if log is not None else None
     try:
-        os.dup2(2, 1)
-        with redirect_stdout(sys.stderr):
+        os.dup2(target.fileno() if target else 2, 1)
+        with redirect_stdout(target or sys.stderr):
             yield
     finally:
         sys.stdout.flush()
         os.dup2(saved, 1)
         os.close(saved)
+        if target:
+            target.close()
 
 
 def build_container(nodes: list[Node], bus: Path, out: Path, step_s: float, starts: dict | None = None,
@@ -148,9 +152,9 @@ def build_container(nodes: list[Node], bus: Path, out: Path, step_s: float, star
     with tempfile.TemporaryDirectory(prefix="railguard-container-") as tmp:
         description = Path(tmp) / "system.json"
         description.write_text(json.dumps(data, indent=2))
-        logging.getLogger("fmu_manipulation_toolbox").setLevel(logging.WARNING)
+        logging.getLogger("fmu_manipulation_toolbox").setLevel(logging.ERROR)   # "Output ... is not connected": by design
         try:
-            with quiet_stdout():
+            with quiet_stdout(out.with_suffix(".log")):
                 assembly = Assembly(str(description), fmu_directory=folder)
                 assembly.make_fmu(fmi_version=3)
         except (AssemblyError, FMUContainerError, FileNotFoundError) as exc:
@@ -165,7 +169,7 @@ def run_container(container: Path, stop_s: float, output_interval: Optional[floa
     Event Mode); returns FMPy's result array of the container's outputs."""
     from fmpy import simulate_fmu
     try:
-        with quiet_stdout():
+        with quiet_stdout(Path(container).with_suffix(".log")):
             return simulate_fmu(str(container), stop_time=stop_s, step_size=STEP_S,
                                 output_interval=output_interval or max(stop_s / 100, STEP_S), use_event_mode=False,
                                 fmi_type="CoSimulation")

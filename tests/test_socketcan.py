@@ -119,6 +119,26 @@ def test_monitor_status_carries_the_table_hash(session):
     assert {s["Mode"] for s in status} >= {1, 2}                        # NORMAL, and DEGRADED during the fault
 
 
+def test_the_monitor_on_the_ls_bus_decides_as_the_monitor_on_vcan0(session, tmp_path):
+    """Issue 42: the session's candump replayed through the FMI-LS-BUS system (the C monitor
+    node, a player node, our bus simulation, fmucontainer, FMPy). The monitor on vcan0 ran on
+    the wall clock beside the player process, so each input is put on the cycle that drained
+    it (fmu.lsbus_replay.aligned). Every cycle's brake level must be the one vcan0 carried; the
+    rest of the payload may differ only where a frame met a cycle boundary on the wall clock
+    (a report that arrived while the recorded monitor was deciding): at most 1 % of cycles."""
+    from fmu import lsbus_replay
+    from monitor import tables
+
+    result = lsbus_replay.replay(session / "bus.log", tables.read("m1"), tmp_path, keys=None, realtime=True)
+    cycles = result.compared // 4
+    assert cycles >= 300, result
+    brake = database().get_message_by_frame_id(BRAKE_DEMAND_ID)
+    level = [(k, brake.decode(bytes.fromhex(a))["Level"], brake.decode(bytes.fromhex(b))["Level"])
+             for k, fid, a, b in result.mismatches if fid == BRAKE_DEMAND_ID]
+    assert all(str(x) == str(y) for _, x, y in level), level
+    assert len({k for k, *_ in result.mismatches}) <= cycles // 100, result.mismatches
+
+
 def test_sandbox_leaves_nothing_behind():
     assert vcan.leftovers() == []
     assert sys.executable
