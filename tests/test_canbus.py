@@ -139,7 +139,7 @@ def frames(draw):
     return Frame(fid, data, ide=ide, fd=fd, brs=fd and draw(st.booleans()))
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(frames())
 def test_frame_bits_equal_the_reference(lib, f):
     assert lib.frame_bits(f) == ref_bits(f)

@@ -30,7 +30,7 @@ from monitor.core.types import Outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 SETUP = core.create(Config(), (ROOT / "monitor" / "tables" / "m2.table.rgt").read_bytes())
-EXAMPLES = 100   # per differential test; tests/test_lsbus_monitor.py holds the same C code to Python on whole scenarios
+EXAMPLES = 50   # per differential test; tests/test_lsbus_monitor.py holds the same C code to Python on whole scenarios
 SLOW = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 REASONS = VERDICTS[1:-1]
 SEEN: set = set()          # the verdicts and brake causes the differential tests met (test_the_streams_reach_...)

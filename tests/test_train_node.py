@@ -81,12 +81,13 @@ def closed(system, scen):
     return run(system, "closed", scen.duration_s)
 
 
-def test_the_train_node_validates_in_fmpy_and_the_toolbox_checker(system):
+def test_the_train_and_monitor_nodes_validate_in_fmpy_and_the_toolbox_checker(system):
     from fmpy.validation import validate_fmu
-    train = system[2]
-    assert validate_fmu(str(train)) == []
-    res = subprocess.run(["fmutool", "-input", str(train), "-check"], capture_output=True, text=True)
-    assert res.returncode == 0 and "No semantic error" in res.stdout + res.stderr
+    for fmu in system[1:3]:
+        assert validate_fmu(str(fmu)) == [], fmu.name
+        res = subprocess.run(["fmutool", "-input", str(fmu), "-check"], capture_output=True, text=True)
+        text = res.stdout + res.stderr
+        assert res.returncode == 0 and "No semantic error" in text and "compliant with FMI-3.0" in text, text
 
 
 def test_over_the_bus_the_train_stops_where_the_signal_cosimulation_stops_it(system, closed, signal):
