@@ -128,8 +128,16 @@ def plot(run: BusRun, path: Path, watch: tuple = (0x10, 0x20, 0x30, 0x40)) -> Pa
     a.step(t, [r[COLUMNS.index("train.applied_demand")] * 5 for r in run.rows], where="post", linestyle="--",
            label="demand the train applies (x5)")
     a.set_ylabel("m/s")
+    security = "secured CAN FD" if run.secured else "UNSECURED classical frames"
+    a.set_title(f"railguard on a simulated CAN bus (FMI-LS-BUS, {security}): {run.scenario}, {run.outcome}")
+    for ax in (a, b, c):
+        if run.faults.flood_id >= 0:
+            ax.axvspan(run.faults.flood_start_s, min(run.faults.flood_stop_s, t[-1]), color="red", alpha=0.08,
+                       label=f"babbling node 0x{run.faults.flood_id:03X}" if ax is a else None)
+        if run.receiver_brake_s is not None:
+            ax.axvline(run.receiver_brake_s, color="red", linestyle=":",
+                       label="the train's receiver brakes on silence" if ax is a else None)
     a.legend(loc="upper right", fontsize=8)
-    a.set_title(f"railguard on a simulated CAN bus (FMI-LS-BUS): {run.scenario}, {run.outcome}")
     for fid in watch:
         tm = run.timing.ids.get(fid)
         if tm and tm.delays:
