@@ -27,7 +27,7 @@ from . import generate
 from .build import C_DIR, _zip, compile_binary
 
 LSBUS_DIR = C_DIR / "lsbus"
-MIME = 'application/org.fmi-standard.fmi-ls-bus.can; version="1.0.0-beta.1"'
+MIME = 'application/org.fmi-standard.fmi-ls-bus.can; version="1.0.0"'   # the standard's table of MIME types
 LS_NAME = "org.fmi-standard.fmi-ls-bus"
 LS_VERSION = "1.0.0"
 MAX_BINARY = 65536

@@ -208,3 +208,31 @@ def test_a_length_that_lies_is_refused(ops):
                 good[:14] + (9).to_bytes(2, "little") + good[16:]):     # 9 data bytes: not a classic length
         got, r, _ = walk(ops, bad)
         assert r == -1 and got == []
+
+
+def test_terminals_mime_types_and_manifest_are_the_standards(fmus):
+    """FMI-LS-BUS (Network Abstraction): one network terminal per bus with the transceiver
+    matching rule and its four members, binaries of the CAN MIME type, the manifest saying
+    which FMU is the bus simulation."""
+    import xml.etree.ElementTree as ET
+    import zipfile
+    out, monitor, sensors, bus = fmus
+    for fmu, terminals, is_bus in ((monitor, ["CAN"], "false"), (bus, ["Node1", "Node2"], "true")):
+        with zipfile.ZipFile(fmu) as z:
+            md = ET.fromstring(z.read("modelDescription.xml"))
+            ti = ET.fromstring(z.read("terminalsAndIcons/terminalsAndIcons.xml"))
+            manifest = ET.fromstring(z.read("extra/org.fmi-standard.fmi-ls-bus/fmi-ls-manifest.xml"))
+        binaries = md.findall("ModelVariables/Binary")
+        assert binaries and {b.get("mimeType") for b in binaries} == {
+            'application/org.fmi-standard.fmi-ls-bus.can; version="1.0.0"'}
+        found = ti.findall("Terminals/Terminal")
+        assert [t.get("name") for t in found] == terminals
+        for t in found:
+            assert t.get("terminalKind") == "org.fmi-ls-bus.network-terminal"
+            assert t.get("matchingRule") == "org.fmi-ls-bus.transceiver"
+            assert sorted(m.get("memberName") for m in t) == ["Rx_Clock", "Rx_Data", "Tx_Clock", "Tx_Data"]
+        ns = "{http://fmi-standard.org/fmi-ls-manifest}"
+        assert manifest.get(f"{ns}fmi-ls-name") == "org.fmi-standard.fmi-ls-bus"
+        assert manifest.get("isBusSimulationFMU") == is_bus
+        clocks = {c.get("name"): c for c in md.findall("ModelVariables/Clock")}
+        assert all(c.get("intervalVariability") == "triggered" for c in clocks.values())
