@@ -17,19 +17,24 @@ when the next frame (or confirmation) reaches that node, so the importer steps e
 """
 from __future__ import annotations
 
+import hashlib
+import os
 import shutil
+import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from . import generate
-from .build import C_DIR, _zip, compile_binary
+from .build import C_DIR, CFLAGS, _zip, compile_binary, compiler
 
 LSBUS_DIR = C_DIR / "lsbus"
 MIME = 'application/org.fmi-standard.fmi-ls-bus.can; version="1.0.0"'   # the standard's table of MIME types
 LS_NAME = "org.fmi-standard.fmi-ls-bus"
 LS_VERSION = "1.0.0"
+SHARED = ("fmi3_network.c", "rg_network.h", "rg_lsbus.c", "rg_lsbus.h", "rg_lsbus_node.c", "rg_lsbus_node.h")
+CACHE_DIR = Path(os.environ.get("RAILGUARD_CACHE") or Path.home() / ".cache" / "railguard") / "network-fmus"
 MAX_BINARY = 65536
 UNITS = ('  <UnitDefinitions>\n    <Unit name="s"><BaseUnit s="1"/></Unit>\n  </UnitDefinitions>\n')        # bytes a Tx/Rx binary may hold (the C buffers' size)
 
@@ -168,7 +173,42 @@ class NetworkFmu:
     token_parts: tuple = ()          # what else the instantiation token is derived from (a table's hash)
 
 
+def cache_key(spec: NetworkFmu) -> str:
+    """SHA-256 of everything a network FMU is built from: the description, every source file's
+    bytes, the generated texts, the resources, the compiler's version and flags."""
+    h = hashlib.sha256(repr((spec.identifier, spec.model, spec.description, spec.variables, spec.networks,
+                             spec.bus_simulation, spec.libraries, spec.token_parts, CFLAGS)).encode())
+    for path in sorted([*(LSBUS_DIR / n for n in SHARED), *(LSBUS_DIR / spec.model).glob("*.[ch]"),
+                        *(C_DIR / sub / name for sub, name in spec.extra_sources)]):
+        h.update(path.name.encode() + path.read_bytes())
+    for name, text in spec.extra_files:
+        h.update(name.encode() + text.encode())
+    for name, data in spec.resources:
+        h.update(name.encode() + data)
+    version = subprocess.run([compiler(), "--version"], capture_output=True, text=True).stdout
+    h.update(version.encode())
+    return h.hexdigest()
+
+
 def build(spec: NetworkFmu, out: Path) -> Path:
+    """The FMU of `spec` at `out`: from the build cache ($RAILGUARD_CACHE or ~/.cache/railguard, network-fmus/, keyed by
+    cache_key: builds are deterministic, so an identical input gives an identical file) or
+    built and then cached."""
+    cached = CACHE_DIR / f"{cache_key(spec)}.fmu"
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if cached.is_file():
+        shutil.copyfile(cached, out)
+        return out
+    built = _build(spec, out)
+    CACHE_DIR.mkdir(parents=True, exist_ok=True)
+    part = CACHE_DIR / f"{cached.stem}.{os.getpid()}.part"
+    shutil.copyfile(built, part)
+    part.replace(cached)                       # atomic: parallel builders never see half a file
+    return built
+
+
+def _build(spec: NetworkFmu, out: Path) -> Path:
     """Stage the sources, generate the XML, compile the x86_64-linux binary, zip to `out`."""
     variables = list(spec.variables)
     token = generate.token(spec.identifier, "lsbus", *(f"{v.name}:{v.type}:{v.causality}:{v.start!r}" for v in variables),
@@ -177,7 +217,7 @@ def build(spec: NetworkFmu, out: Path) -> Path:
         folder = Path(tmp)
         src = folder / "sources"
         src.mkdir()
-        for name in ("fmi3_network.c", "rg_network.h", "rg_lsbus.c", "rg_lsbus.h", "rg_lsbus_node.c", "rg_lsbus_node.h"):
+        for name in SHARED:
             shutil.copy(LSBUS_DIR / name, src / name)
         for path in sorted((LSBUS_DIR / spec.model).glob("*.[ch]")):
             shutil.copy(path, src / path.name)

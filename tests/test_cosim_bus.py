@@ -76,10 +76,26 @@ def test_the_ssp_is_the_system_that_ran(runs, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--bus", "ls-bus", "--step", "0.05"], "--step: options of the signal co-simulation"),
     (["--flood-id", "0"], "--flood-id: options of --bus ls-bus"),
-    (["--bus", "ls-bus", "--flood-id", "0x800"], "11-bit CAN identifier"),
-    (["--bus", "ls-bus", "--flood-start", "3"], "need --flood-id"),
-    (["--bus", "ls-bus", "--flood-id", "0", "--flood-start", "5", "--flood-stop", "4"], "must be after"),
 ])
 def test_wrong_options_are_one_line_and_exit_2(args, message, tmp_path):
     res = railguard("cosim", "static-obstacle", *args, "--out", str(tmp_path), check=False)
     assert res.returncode == 2 and message in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
+
+
+@pytest.mark.parametrize("flood_id, start, stop, error_id, count, message", [
+    (0x800, None, None, None, None, "11-bit CAN identifier"),
+    (None, 3.0, None, None, None, "need --flood-id"),
+    (0, 5.0, 4.0, None, None, "must be after"),
+    (None, None, None, None, 2, "--error-count needs --error-id"),
+])
+def test_the_bus_faults_are_checked_before_anything_is_built(flood_id, start, stop, error_id, count, message):
+    import argparse
+
+    from railguard.commands.cosim_bus import faults_of
+    from railguard.errors import UserError
+    args = argparse.Namespace(flood_id=flood_id, flood_start=start, flood_stop=stop, error_id=error_id,
+                              error_count=count)
+    with pytest.raises(UserError, match=message):
+        faults_of(args)
+    ok = faults_of(argparse.Namespace(flood_id=0, flood_start=20.0, flood_stop=22.0, error_id=0x10, error_count=None))
+    assert (ok.flood_id, ok.flood_start_s, ok.flood_stop_s, ok.error_id, ok.error_count) == (0, 20.0, 22.0, 0x10, 1)
