@@ -6,6 +6,7 @@ co-simulation (fmu/cosim.py), with the frames of vcan0 in between. What the bus 
 SSP that fmucontainer reads."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,6 +82,8 @@ def run_scenario(scen, table_bytes: bytes, out_dir: Path, keys: Optional[Path] =
     bus = build_bus(2, out_dir)
     trace = out_dir / f"bus-{scen.name}.csv"
     starts = {("canbus.fmu", k): v for k, v in faults.starts().items()}
+    if math.isfinite(scen.monitor_stop_s):
+        starts[("monitor.fmu", "stop_time")] = scen.monitor_stop_s
     outputs = ([("train.fmu", n, f"train.{n}") for n in TRAIN_OUT] + [("monitor.fmu", n, f"monitor.{n}")
                for n in MONITOR_OUT] + [("canbus.fmu", n, f"bus.{n}") for n in BUS_OUT])
     container = build_container([Node(monitor), Node(train)], bus, out_dir / f"lsbus-{scen.name}.fmu", STEP_S,
@@ -97,11 +100,12 @@ def run_scenario(scen, table_bytes: bytes, out_dir: Path, keys: Optional[Path] =
     outcome, margin = outcome_of(final, has_obstacle=scen.train.get("obstacle.present", 1) != 0)
     demand = COLUMNS.index("monitor.brake_demand")
     # the first demand after the monitor's start-up, at its cycle's tick (it is decided phase_ms later)
-    braking = [round(round((r[0] - DEFAULT_PHASE_MS / 1000) / PERIOD_S) * PERIOD_S, 6) for r in rows
-               if r[demand] > 0 and r[0] > 1.0]
+    decided = [r for r in rows if r[0] >= DEFAULT_PHASE_MS / 1000 - 1e-9]      # cycle 0 has run
+    braking = [round(round((r[0] - DEFAULT_PHASE_MS / 1000) / PERIOD_S) * PERIOD_S, 6) for r in decided
+               if r[demand] > 0]
     receiver = final["train.receiver_brake_time"]
     return BusRun(scen.name, outcome, margin, final["train.position"], braking[0] if braking else None,
-                  int(max(r[demand] for r in rows if r[0] > 1.0)), receiver if receiver >= 0 else None,
+                  int(max(r[demand] for r in decided)), receiver if receiver >= 0 else None,
                   timing(read_trace(trace), scen.duration_s, bit_rate=BIT_RATE), rows, trace, container, ssp,
                   keys is not None, scen.duration_s, wall, faults)
 

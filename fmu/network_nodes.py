@@ -63,6 +63,8 @@ def monitor_variables() -> list[NetVar]:
         NetVar("phase_ms", "Int32", "parameter", "the monitor samples this long after the sensors publish",
                DEFAULT_PHASE_MS),
         NetVar("bit_rate", "Int32", "parameter", "the bit rate this node configures on the bus", BIT_RATE),
+        NetVar("stop_time", "Float64", "parameter", "no cycle from then on: a crashed or hung monitor (the "
+               "scenario fault monitor_stop), which the train's brake receiver must catch", 1e9, "s"),
         NetVar("brake_demand", "Int32", "output", "the cycle's demand: 0 none, 1 service, 2 emergency"),
         NetVar("reasons", "Int32", "output", "why (R_* bits, monitor.core.types)"),
         NetVar("mode", "Int32", "output", "the core's mode"),

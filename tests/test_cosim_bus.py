@@ -29,11 +29,13 @@ def runs(tmp_path_factory):
     flood = json.loads(railguard("cosim", "static-obstacle", "--bus", "ls-bus", "--flood-id", "0x000",
                                  "--flood-start", "20", "--flood-stop", "22", "--out", str(out / "flood"),
                                  "--json").stdout)
-    return out, signal, bus, flood
+    stop = json.loads(railguard("cosim", "monitor-stop-30", "--bus", "ls-bus", "--out", str(out / "stop"),
+                                "--json").stdout)
+    return out, signal, bus, flood, stop
 
 
 def test_over_the_bus_the_train_stops_where_the_signal_cosimulation_stops_it(runs):
-    _, signal, bus, _ = runs
+    _, signal, bus, _, _ = runs
     assert bus["outcome"] == signal["outcome"] == "stopped"
     assert bus["margin_m"] == pytest.approx(signal["margin_m"], abs=1e-3)
     assert bus["first_brake_s"] == pytest.approx(signal["first_brake_s"], abs=1e-9)
@@ -44,7 +46,7 @@ def test_over_the_bus_the_train_stops_where_the_signal_cosimulation_stops_it(run
 
 
 def test_a_flood_at_0x000_starves_brake_demand_and_the_receiver_brakes(runs):
-    _, _, bus, flood = runs
+    _, _, bus, flood, _ = runs
     rows = read_trace(flood["trace"])
     brake = [r for r in rows if r["id"] == "0x010" and r["kind"] == "delivered"]
     last = max(float(r["end_s"]) for r in brake if float(r["end_s"]) < 20.0)
@@ -56,13 +58,22 @@ def test_a_flood_at_0x000_starves_brake_demand_and_the_receiver_brakes(runs):
     assert flood["peak_load_100ms"] == 1.0
 
 
+def test_a_monitor_that_stops_is_caught_by_the_train_s_receiver(runs):
+    """monitor-stop-30: the monitor node runs no cycle from 5 s on (a crash or a hang); its
+    BrakeDemand falls silent and the train's alive check brakes 0.3 s later, as in the signal
+    co-simulation (docs/fmu.md: 5.3 s, 1,183.7 m short of the obstacle)."""
+    stop = runs[4]
+    assert stop["receiver_brake_s"] == pytest.approx(5.3, abs=1e-9) and stop["max_demand"] == 0
+    assert stop["outcome"] == "stopped" and stop["margin_m"] == pytest.approx(1183.681, abs=1e-3)
+
+
 def test_the_ssp_is_the_system_that_ran(runs, tmp_path):
     """fmucontainer builds a container from the SSP; run by FMPy it stops the train where the
     command's container did."""
     from fmu_manipulation_toolbox.assembly import Assembly
 
     from fmu.lsbus_system import STEP_S, quiet_stdout, run_container
-    _, _, bus, _ = runs
+    _, _, bus, _, _ = runs
     ssp = tmp_path / "system.ssp"
     ssp.write_bytes(open(bus["ssp"], "rb").read())
     with quiet_stdout():

@@ -26,6 +26,7 @@ typedef struct {
     char resources[RG_NET_STRING];
     int32_t phase_ms;
     int32_t bit_rate;
+    double stop_time;                /* s: no cycle from then on (a crashed or hung monitor: fault monitor_stop) */
     /* the core */
     rg_config config;
     rg_table table;

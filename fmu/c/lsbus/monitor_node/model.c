@@ -18,6 +18,7 @@ void net_start_values(NetData *m)
     RG_PARAMETERS(SET_START)
     m->config.modules = RG_START_TOPOLOGY == 3 ? 3 : 1;
     m->phase_ms = 20;
+    m->stop_time = 1e9;
     m->bit_rate = 500000;
     m->table.bytes = RG_TABLE_BYTES;
     m->table.length = RG_TABLE_LENGTH;
@@ -72,7 +73,7 @@ static int64_t cycle_ns(const NetData *m, int64_t k)
 int net_do_step(NetData *m, int64_t from_ns, int64_t to_ns, int *event_needed, char *msg, size_t len)
 {
     (void)from_ns;
-    while (cycle_ns(m, m->cycles) <= to_ns) {
+    while (cycle_ns(m, m->cycles) <= to_ns && (double)m->cycles * m->config.period_ms < m->stop_time * 1000.0) {
         int64_t tick = m->cycles * m->config.period_ms;
         rg_inputs in;
         rg_frame frames[4];
@@ -100,7 +101,7 @@ int net_update_discrete_states(NetData *m, int64_t now_ns)
     return 0;
 }
 
-double net_get_float64(const NetData *m, uint32_t vr) { (void)m; (void)vr; return 0.0; }
+double net_get_float64(const NetData *m, uint32_t vr) { return vr == vr_stop_time ? m->stop_time : 0.0; }
 
 int32_t net_get_int32(const NetData *m, uint32_t vr)
 {
@@ -128,7 +129,10 @@ int net_get_boolean(const NetData *m, uint32_t vr)
 }
 
 const char *net_get_string(const NetData *m, uint32_t vr) { (void)m; (void)vr; return ""; }
-void net_set_float64(NetData *m, uint32_t vr, double v) { (void)m; (void)vr; (void)v; }
+void net_set_float64(NetData *m, uint32_t vr, double v)
+{
+    if (vr == vr_stop_time) m->stop_time = v;
+}
 
 void net_set_int32(NetData *m, uint32_t vr, int32_t v)
 {
