@@ -88,7 +88,7 @@ def _stage(folder: Path, model: str, variables, extra: dict[str, str], core: boo
     src.mkdir(parents=True)
     for name in (CORE_SOURCES + CORE_HEADERS) if core else ():
         shutil.copy(Path(core_dir or C_DIR / "core") / name, src / name)
-    for name in ("model.h", "rg_math.h", "rg_fmi_shared.h"):
+    for name in ("model.h", "rg_math.h", "rg_reading.h", "rg_fmi_shared.h"):
         shutil.copy(C_DIR / "fmi" / name, src / name)
     for path in sorted((C_DIR / model).glob("*.[ch]")):
         shutil.copy(path, src / path.name)

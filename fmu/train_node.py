@@ -119,7 +119,7 @@ def train_spec(train_params: dict, keys: Optional[Path] = None) -> NetworkFmu:
     description = ("railguard train dynamics on a CAN bus (FMI-LS-BUS): TrainState and six ObstacleReports every "
                    f"100 ms, BrakeDemand in; {'secured CAN FD' if blob else 'unsecured classical'} frames")
     return NetworkFmu(TRAIN_NODE_ID, "train_node", description, tuple(train_variables(starts)), ("CAN",),
-                      extra_sources=FRAME_LAYER + (("core", "rg_core.h"), ("fmi", "rg_math.h")),
+                      extra_sources=FRAME_LAYER + (("core", "rg_core.h"), ("fmi", "rg_math.h"), ("fmi", "rg_reading.h")),
                       extra_files=staged_train_model() + (("train_params.h", params_header(starts)),) + dbc_sources(),
                       resources=((("keys.bin", blob),) if blob else ()), libraries=("-lcrypto",),
                       token_parts=(repr(sorted(starts.items())), "secured" if blob else ""))

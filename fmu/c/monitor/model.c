@@ -5,7 +5,7 @@
  * rounded down to dm, closing and train speed rounded up to cm/s. NaN or a value outside
  * its range becomes a value the core refuses (the channel counts as DEGRADED, the train
  * state as a train-input error). fmu/reference.py does exactly the same in Python. */
-#include "rg_math.h"
+#include "rg_reading.h"
 #include <stdio.h>
 
 #include "model.h"
@@ -17,24 +17,6 @@ typedef char channel_layout_check[(vr_ch2_status - vr_ch1_status == CH_FIELDS &&
                                    vr_ch1_distance == vr_ch1_status + 1 && vr_ch1_closing_speed == vr_ch1_status + 2 &&
                                    vr_ch1_type == vr_ch1_status + 3 && vr_ch1_valid == vr_ch1_status + 4 &&
                                    vr_ch6_valid == vr_ch1_status + 6 * CH_FIELDS - 1) ? 1 : -1];
-
-static int32_t read_distance_dm(double x)
-{
-    if (!(x >= 0.0 && x <= 6000.0)) return -1;
-    return (int32_t)rg_floor(x * 10.0);
-}
-
-static int32_t read_closing_cms(double x)
-{
-    if (!(x >= -150.0 && x <= 150.0)) return 99999;
-    return (int32_t)rg_ceil(x * 100.0);
-}
-
-static int32_t read_speed_cms(double x)
-{
-    if (!(x >= 0.0 && x <= 120.0)) return -1;
-    return (int32_t)rg_ceil(x * 100.0);
-}
 
 static void set_outputs_start(ModelData *m)
 {

@@ -4,32 +4,13 @@
 
 #include "net_variables.h"
 #include "rg_lsbus.h"
-#include "rg_math.h"
+#include "rg_reading.h"
 #include "rg_network.h"
 #include "rg_node_keys.h"
 #include "train_params.h"            /* generated: TRAIN_PARAMS[] (net vr, train vr, type, start), tvr_* */
 
 #define PERIOD_NS ((int64_t)TRAIN_NODE_PERIOD_MS * 1000000)
 #define CH_FIELDS 5                  /* status, distance, closing_speed, type, valid (train model.c checks it) */
-
-/* the signal monitor FMU's conversions (fmu/c/monitor/model.c), so both monitors read the same integers */
-static int32_t read_distance_dm(double x)
-{
-    if (!(x >= 0.0 && x <= 6000.0)) return -1;
-    return (int32_t)rg_floor(x * 10.0);
-}
-
-static int32_t read_closing_cms(double x)
-{
-    if (!(x >= -150.0 && x <= 150.0)) return 99999;
-    return (int32_t)rg_ceil(x * 100.0);
-}
-
-static int32_t read_speed_cms(double x)
-{
-    if (!(x >= 0.0 && x <= 120.0)) return -1;
-    return (int32_t)rg_ceil(x * 100.0);
-}
 
 static const rg_train_param *param_of(uint32_t vr)
 {
@@ -224,12 +205,6 @@ void net_set_boolean(NetData *m, uint32_t vr, int v)
 
 void net_set_string(NetData *m, uint32_t vr, const char *v) { (void)m; (void)vr; (void)v; }
 
-void net_get_binary(NetData *m, uint32_t vr, const uint8_t **data, size_t *size)
-{
-    (void)vr;
-    rg_node_data(&m->tx, data, size);
-}
-
 /* Frames from the bus: the monitor's (and anyone's) through the receiver (E2E, SecOC; on a
  * secured bus CAN FD frames only, on an unsecured one classical frames only). The newest
  * accepted BrakeDemand stays latched in rx.demand for the next instant. */
@@ -261,16 +236,4 @@ int net_set_binary(NetData *m, uint32_t vr, const uint8_t *data, size_t size, in
     return RG_NET_OK;
 }
 
-int net_get_clock(NetData *m, uint32_t vr)
-{
-    (void)vr;
-    return rg_node_tick(&m->tx);
-}
-
-void net_set_clock(NetData *m, uint32_t vr, int64_t now_ns) { (void)m; (void)vr; (void)now_ns; }
-
-int net_get_interval(NetData *m, uint32_t vr, int64_t now_ns, int64_t *interval_ns)
-{
-    (void)m; (void)vr; (void)now_ns; (void)interval_ns;
-    return 0;
-}
+RG_NODE_TX_CONTRACT
