@@ -27,4 +27,29 @@ int rg_node_has_pending(const rg_node_tx *tx);
 int rg_node_tick(rg_node_tx *tx);
 void rg_node_data(const rg_node_tx *tx, const uint8_t **data, size_t *size);
 
+/* The transmit side of the network contract (rg_network.h) for a node model whose NetData keeps
+ * its rg_node_tx in `tx`, expanded once in its model.c: Tx_Data is what the last Tx_Clock tick
+ * handed over; its Rx_Clock needs no action (the data comes with fmi3SetBinary) and it has no
+ * countdown clock. One definition for the player, the monitor node and the train node. */
+#define RG_NODE_TX_CONTRACT                                                                       \
+    void net_get_binary(NetData *m, uint32_t vr, const uint8_t **data, size_t *size)              \
+    {                                                                                             \
+        (void)vr;                                                                                 \
+        rg_node_data(&m->tx, data, size);                                                         \
+    }                                                                                             \
+    int net_get_clock(NetData *m, uint32_t vr)                                                    \
+    {                                                                                             \
+        (void)vr;                                                                                 \
+        return rg_node_tick(&m->tx);                                                              \
+    }                                                                                             \
+    void net_set_clock(NetData *m, uint32_t vr, int64_t now_ns)                                   \
+    {                                                                                             \
+        (void)m; (void)vr; (void)now_ns;                                                          \
+    }                                                                                             \
+    int net_get_interval(NetData *m, uint32_t vr, int64_t now_ns, int64_t *interval_ns)           \
+    {                                                                                             \
+        (void)m; (void)vr; (void)now_ns; (void)interval_ns;                                       \
+        return 0;                                                                                 \
+    }
+
 #endif

@@ -143,12 +143,6 @@ void net_set_int32(NetData *m, uint32_t vr, int32_t v)
 void net_set_boolean(NetData *m, uint32_t vr, int v) { (void)m; (void)vr; (void)v; }
 void net_set_string(NetData *m, uint32_t vr, const char *v) { (void)m; (void)vr; (void)v; }
 
-void net_get_binary(NetData *m, uint32_t vr, const uint8_t **data, size_t *size)
-{
-    (void)vr;
-    rg_node_data(&m->tx, data, size);
-}
-
 /* Frames that arrive are stamped as runner.py stamps them: never later than the next cycle's
  * tick (the arrival in whole ms, at most that tick). */
 int net_set_binary(NetData *m, uint32_t vr, const uint8_t *data, size_t size, int64_t now_ns, char *msg, size_t len)
@@ -177,16 +171,4 @@ int net_set_binary(NetData *m, uint32_t vr, const uint8_t *data, size_t size, in
     return RG_NET_OK;
 }
 
-int net_get_clock(NetData *m, uint32_t vr)
-{
-    (void)vr;
-    return rg_node_tick(&m->tx);
-}
-
-void net_set_clock(NetData *m, uint32_t vr, int64_t now_ns) { (void)m; (void)vr; (void)now_ns; }
-
-int net_get_interval(NetData *m, uint32_t vr, int64_t now_ns, int64_t *interval_ns)
-{
-    (void)m; (void)vr; (void)now_ns; (void)interval_ns;
-    return 0;
-}
+RG_NODE_TX_CONTRACT
