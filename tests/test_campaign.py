@@ -229,15 +229,20 @@ def test_the_old_nominal_envelope_collides_in_the_campaigns_world(monkeypatch):
 def test_a_world_train_worse_than_declared_collides_and_the_declared_one_does_not():
     """The witness does not share the monitor's assumptions: with a world train braking at
     1.0 m/s^2 after 1.5 s (the monitor still believes the declaration), the level-crossing
-    scenario ends in collisions the train could have avoided; the declaration's corners stop."""
+    scenario ends in collisions the train could have avoided; the declaration's corners stop.
+    m1's risk-repaired table (issue 41) brakes on the crossing's first "emergency" and stops
+    even that train 2 m short, so m1 is judged on its curves alone (a table never braking)."""
     weak = wt.WorldTrain(emergency_decel=((0.0, 1.0),), service_decel=0.5, brake_delay=1.5, brake_buildup=0.0)
     for model in ("m1", "m2"):
         spec = cp.RunSpec((), "crossing-500m-30", 0, model)
-        res = cp.simulate(spec, world=weak)
+        table = _never_braking_table("m1") if model == "m1" else None
+        res = cp.simulate(spec, world=weak, table_bytes=table)
         assert res["unsafe"] == 1 and res["collision"] and not res["unavoidable"], res["unsafe_first"]
         for corner in wt.corners(Config()):
-            ok = cp.simulate(spec, world=corner)
+            ok = cp.simulate(spec, world=corner, table_bytes=table)
             assert ok["unsafe"] == 0 and not ok["collision"] and ok["closest_m"] > 50.0
+    repaired = cp.simulate(cp.RunSpec((), "crossing-500m-30", 0, "m1"), world=weak)
+    assert repaired["unsafe"] == 0 and not repaired["collision"]
 
 
 def test_runs_digest_depends_on_outcomes_not_on_order():

@@ -99,6 +99,11 @@ def test_solve_m1_then_table_show(capsys, tmp_path):
     table_path = tmp_path / "m1.table.rgt"
     assert obj["table"] == str(table_path)
     t = decode(table_path.read_bytes(), expect_model="m1")
+    # the plan's risk repair ran (issue 41): the header and the JSON say what it bought and paid
+    fix = obj["risk_repair"]
+    assert fix == t.header["risk_repair"] and fix["hazard_price"] == 20000.0
+    assert fix["p_hazard"] < fix["p_hazard_before"] / 10 and fix["value"] == obj["controller_value"]
+    assert f"risk repair      P(hazard within 30 s) {fix['p_hazard_before']:.3g} -> {fix['p_hazard']:.3g}" in summary
 
     code, out, err = run_main(capsys, ["table", "show", table_path])
     assert code == 0, err

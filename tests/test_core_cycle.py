@@ -429,12 +429,10 @@ def test_ebi_just_inside_and_just_outside(speed):
     cfg = Config()
     ebi = normal_curves(cfg, speed).ebi_dm
     assert ebi > 0
-    # just inside: from the start node, m1's table does not brake on "critical" (node 0 -> 2,
-    # action maintain), the supervision must
-    d = normal_driver(cfg)
-    table = d.setup.table
-    assert d.state.node == table.start == 0
-    assert table.action[table.next[0][3]] == MAINTAIN   # the premise: the table would not brake
+    # just inside: a table that never brakes (m1's own, risk-repaired since issue 41, brakes on
+    # a first "emergency" itself), so the supervision must
+    d = normal_driver(cfg, maintain_only(M1))
+    assert d.state.node == d.setup.table.start == 0
     out = d.present(ebi, speed)
     assert out.mode == NORMAL and not out.system_error
     assert out.distance_dm == ebi
@@ -449,6 +447,8 @@ def test_ebi_just_inside_and_just_outside(speed):
     assert out.demand == EMERGENCY
     # just outside: no emergency from the curves, service from SBI (the table may add its own)
     d = normal_driver(cfg)
+    table = d.setup.table
+    assert d.state.node == table.start == 0
     out = d.present(ebi + 1, speed)
     assert out.distance_dm == ebi + 1
     assert not out.reasons & R_ENVELOPE

@@ -13,7 +13,7 @@ from monitor.core.types import (
     ABSENT, DEGRADED, EMERGENCY, MAINTAIN, NO_DISTANCE, PRESENT, R_ENVELOPE, R_LATCH, R_MEMORY, SERVICE, STATIC,
     TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Report,
 )
-from tests.test_core_cycle import M1, M2, clear, disagreeing, normal_driver, present, with_channel
+from tests.test_core_cycle import M1, M2, clear, disagreeing, maintain_only, normal_driver, present, with_channel
 
 V = 3000                  # 30 m/s
 
@@ -259,7 +259,7 @@ def test_a_disputed_sighting_ahead_of_the_track_is_another_obstacle_and_each_kee
     cfg = Config()
     oncoming = V + 2000
     static, fast = curves(cfg, V, 0, 0, V, 0).ebi_dm, curves(cfg, V, 0, 0, oncoming, 0).ebi_dm
-    d = normal_driver(cfg, M1)
+    d = normal_driver(cfg, maintain_only(M1))   # the curves' answer, not the table's
     firm(d, fast + 2000, V, closing=oncoming, cycles=1)
     out = d.cycle(with_channel(present(d.tick, static + 1, closing=V), 0, Report(ABSENT, 0, 0, STATIC, d.tick)), V)
     assert out.track_state == TRACK_SEEN and out.track_dm == static + 1 and out.system_error

@@ -195,7 +195,7 @@ def test_sharp_estimator_reproduces_exact_hazards(name, policy, guide, episodes)
     Monte Carlo would need about a million)."""
     target = ev.load_target(name)
     model = target.model
-    ctrls = {**finite_baselines(model), "table": target.controller}
+    ctrls = {**finite_baselines(model), "table": target.compiled}    # as compiled: belief tracking's guide
     exact = ev.hazard_exact(model, ctrls[policy], STEPS)
     guides = () if guide is None else (sh.Guide(model, ctrls[guide], STEPS),)
     est = sh.estimate(model, sh.controller(ctrls[policy]), STEPS, episodes, seed=11, guides=guides)
@@ -404,33 +404,34 @@ def test_evaluate_gives_belief_trackings_sharp_hazard_and_a_verdict_per_baseline
 @pytest.mark.parametrize("name", ["m1", "m2"])
 def test_shipped_table_against_the_rules_it_is_held_to_and_the_verdicts_stated(evaluated, name):
     """ACAS X's rule as held (evaluate.ACCEPTED): m1 better than threshold on p_hazard and
-    unnecessary braking, m2 on p_hazard; against belief tracking what is stated (issue 31:
-    belief tracking is safer by its sharp estimate; m1 brakes needlessly less, m2 in its
-    world since issue 41 more), and m2 no better than threshold on needless braking
-    (STATED); rule_checks says so."""
+    unnecessary braking and, risk-repaired (issue 41), than belief tracking on p_hazard; m2
+    better than threshold on p_hazard; what is stated against belief tracking (m1 brakes
+    needlessly less; m2 is riskier and, in its world since issue 41, brakes needlessly more)
+    and m2 no better than threshold on needless braking (STATED); rule_checks says so."""
     r = evaluated[name]
-    assert ev.ACCEPTED == {"m1": {"threshold": ("p_hazard", "unnecessary_braking")}, "m2": {"threshold": ("p_hazard",)}}
+    assert ev.ACCEPTED == {"m1": {"threshold": ("p_hazard", "unnecessary_braking"), "belief_tracking": ("p_hazard",)},
+                           "m2": {"threshold": ("p_hazard",)}}
     for base, figures in ev.ACCEPTED[name].items():
         assert ev.verdict({k: r["comparisons"][base]["figures"][k]["decision"] for k in figures}) == "better"
     bt = r["comparisons"]["belief_tracking"]["figures"]
-    assert bt["p_hazard"]["decision"] == "worse"
+    assert bt["p_hazard"]["decision"] == ("better" if name == "m1" else "worse")
     assert bt["unnecessary_braking"]["decision"] != ("worse" if name == "m1" else "better")
-    assert r["acceptance_verdicts"]["belief_tracking"] in ("trade-off", "worse")
+    assert r["acceptance_verdicts"]["belief_tracking"] in (("better", "indistinguishable") if name == "m1"
+                                                           else ("trade-off", "worse"))
     checks = ev.rule_checks(name, name, r["comparisons"], quick=True)
     assert checks and all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
-    said = "better" if name == "m1" else "worse"
-    assert any(f"belief_tracking worse on p_hazard, {said} on unnecessary_braking" in c.name for c in checks)
+    said = "better on unnecessary_braking" if name == "m1" else "worse on p_hazard, worse on unnecessary_braking"
+    assert any(f"belief_tracking {said}" in c.name for c in checks)
 
 
 def test_a_statement_holds_only_while_the_decisions_say_it():
     def comp(p, u):
         return {"figures": {"p_hazard": {"decision": p}, "unnecessary_braking": {"decision": u}}}
 
-    assert ev.holds_statement("m1", "belief_tracking", comp("worse", "better"), quick=False)
-    assert not ev.holds_statement("m1", "belief_tracking", comp("worse", "indistinguishable"), quick=False)
-    assert ev.holds_statement("m1", "belief_tracking", comp("worse", "indistinguishable"), quick=True)
-    # the old rule's reading ('no worse' on p_hazard) contradicts the statement at any size
-    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "better"), quick=True)
+    assert ev.holds_statement("m1", "belief_tracking", comp("better", "better"), quick=False)
+    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "indistinguishable"), quick=False)
+    assert ev.holds_statement("m1", "belief_tracking", comp("better", "indistinguishable"), quick=True)
+    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "worse"), quick=True)
     assert not ev.holds_statement("m2", "belief_tracking", comp("worse", "better"), quick=True)
     assert ev.holds_statement("m2", "belief_tracking", comp("worse", "worse"), quick=False)
     assert ev.holds_statement("m2", "threshold", comp("better", "worse"), quick=False)

@@ -27,7 +27,7 @@ from monitor.core.types import (
     STATIC, TRACK_CONFIRMING, TRACK_FORGOTTEN, TRACK_HELD, TRACK_NONE, TRACK_PASSED, TRACK_SEEN, Inputs, Report, State,
     Train,
 )
-from tests.test_core_cycle import M1, M2, clear, normal_driver, present, with_channel
+from tests.test_core_cycle import M1, M2, clear, maintain_only, normal_driver, present, with_channel
 
 U = 10000                 # 1e-5 m per dm (memory.UNITS_PER_DM), written out
 V = 3000                  # 30 m/s
@@ -235,7 +235,7 @@ def test_the_remembered_obstacle_is_supervised_with_its_own_speed_plus_the_train
     cfg = Config()
     c = curves(cfg, V, 0, 0, 5000, 0)
     first = c.ebi_dm + 40
-    d = normal_driver(cfg)
+    d = normal_driver(cfg, maintain_only(M1))   # the curves' answer, not the table's
     out = d.cycle(present(d.tick, first, closing=5000), V)
     assert out.demand == SERVICE and d.state.track_closing == 2060
     out = d.clear(V)
@@ -250,7 +250,7 @@ def test_a_blind_remembered_obstacle_inside_its_warning_curve_warns():
     cfg = Config()
     c = curves(cfg, V, 0, 0, V, 0)                 # 60 cm/s of its own + the train's 2940
     first = c.warning_dm + 33                      # one cycle's prediction: 32.2 dm (closing accuracy included)
-    d = normal_driver(cfg)
+    d = normal_driver(cfg, maintain_only(M1))   # the curves' answer, not the table's
     out = d.cycle(present(d.tick, first, closing=V), V)
     assert not out.warning
     out = d.clear(V)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -12,11 +12,13 @@ import numpy as np
 from .. import __version__
 from ..core import table as table_format
 from . import pomdp_file
-from .controller import Compiled, compilation_loss_percent, compile_controller, plain_value
+from .closed_chain import hazard_states
+from .controller import Compiled, Controller, compilation_loss_percent, compile_controller, plain_value
 from .layered import ConditionLayer, base_model, compile_monotone
 from .models import Plan, rebuild
+from .node_risk import HORIZON_S, node_risk
 from .node_risk import describe as describe_risk
-from .node_risk import node_risk
+from .risk_repair import Repair, repair
 from .table_view import risk_range
 from .pomdp import POMDP
 from .relaxation import Relaxation, describe_upper
@@ -56,6 +58,7 @@ class Result:
     relaxed: Optional["RelaxedBound"] = None
     plain_value: Optional[float] = None      # the table's value without the release cost (controller.plain_value)
     shipped: Optional[dict] = None           # the shipped table of the same model, if any (against_shipped)
+    repair: Optional[dict] = None            # the risk repair's figures (repair_entry), if the plan asks for one
 
     @property
     def sha256(self) -> str:
@@ -100,9 +103,11 @@ def model_digest(model: POMDP) -> str:
 
 
 def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled,
-                 relaxed: Optional[RelaxedBound] = None) -> dict:
+                 relaxed: Optional[RelaxedBound] = None, repaired: Optional[dict] = None) -> dict:
     """Everything a reader needs to trust and interpret the table; nothing time-dependent."""
     extra = {} if relaxed is None else {"relaxation": relaxed.entry(sol.upper_bound)}
+    if repaired is not None:
+        extra["risk_repair"] = repaired
     return {
         "format": "railguard-table",
         "railguard_version": __version__,
@@ -136,6 +141,8 @@ BASE_SHARE = 0.25     # with conditions: the conditions-blind base model's solve
                       # (its bounds certify the table) runs on to SOLVE_SHARE
 RELAX_SHARE = 0.85    # with a relaxation: its solve uses what compilation left, up to this; the risk
                       # column comes after it (m2, 162 nodes: 10 s), and the run must end in its budget
+REPAIR_SHARE = 0.8    # the risk repair starts no round that would end after this (m1: 0.2 s; an m2
+                      # round takes about 40 s, so a 60 s solve has none: `railguard table repair`)
 RELAXED_COMPILE_SHARE = 0.7   # with a relaxation, compilation starts no round after this: m2's layered
                               # table gains a round (60 s solve: -0.1978 -> -0.1962, 6.21 % -> 4.57 %
                               # below the lower bound without release cost) and the relaxation's bound
@@ -179,14 +186,73 @@ def _run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]
     else:
         sol = solve(model, plan.settings, progress, deadline=start + SOLVE_SHARE * budget)
         comp = compile_controller(model, sol, max_nodes=plan.max_nodes, progress=compile_progress, deadline=deadline)
+    repaired = None
+    if plan.hazard_price > 0 and len(hazard_states(model)):
+        fixed = repair(model, comp.controller, horizon_cycles(model), plan.hazard_price,
+                       layer if plan.conditions else None, say, deadline=start + REPAIR_SHARE * budget)
+        comp, repaired = replace(comp, controller=fixed.controller, values=fixed.values, value=fixed.value), \
+            repair_entry(fixed, plan.hazard_price)
     relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
     ctrl = comp.controller
     say("risk column: each node's P(hazard within the horizon) on the exact closed loop")
     step = time_step_of(model)
-    data = table_format.encode(table_header(model, plan, sol, comp, relaxed), ctrl.action.tolist(), ctrl.next.tolist(),
-                               node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
+    data = table_format.encode(table_header(model, plan, sol, comp, relaxed, repaired), ctrl.action.tolist(),
+                               ctrl.next.tolist(), node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
     plain = plain_value(model, ctrl) if model.release_cost else comp.value     # (no release cost: the same value)
-    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain, against_shipped(model))
+    return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain, against_shipped(model),
+                  repaired)
+
+
+def horizon_cycles(model: POMDP) -> int:
+    """The cycles of the hazard horizon (HORIZON_S) at the model's time step."""
+    return int(round(HORIZON_S / time_step_of(model)))
+
+
+def repair_entry(fixed: Repair, price: float) -> dict:
+    """The table header's `risk_repair` entry: what the repair bought and paid."""
+    return {"hazard_price": price, "horizon_s": HORIZON_S, "p_hazard_before": fixed.p_before,
+            "p_hazard": fixed.p_hazard, "value_before": fixed.value_before, "value": fixed.value,
+            "raised": fixed.raised()}
+
+
+def as_compiled(table: table_format.Table) -> Controller:
+    """The table's controller as compiled, before its risk repair (the header's `raised`
+    entries undone): the controller the same alpha vectors gave, which guides belief
+    tracking's sharp hazard estimate (a guide much safer than the policy it guides is not one)."""
+    ctrl = Controller.of_table(table)
+    raised = table.header.get("risk_repair", {}).get("raised", [])
+    if not all(0 <= n < ctrl.nodes and ctrl.action[n] == after for n, _before, after in raised):
+        return ctrl                   # a header copied onto another controller: nothing to undo
+    action = ctrl.action.copy()
+    for node, before, _after in raised:
+        action[node] = before
+    return Controller(action, ctrl.next, ctrl.start)
+
+
+def repaired(data: bytes, price: float, say: Callable[[str], None] = lambda text: None,
+             deadline: Optional[float] = None) -> tuple[bytes, Repair]:
+    """A table file with its actions raised by the risk repair at `price` (`railguard table
+    repair`): the header's controller value and `risk_repair` entry follow, the risk column is
+    recomputed; the rest of the header (bounds, solver) is the solve's."""
+    old = table_format.decode(data)
+    model = rebuild(dict(old.header))
+    ctrl = Controller.of_table(old)
+    monotone_in = old.header.get("solver", {}).get("monotone_in")
+    layer = ConditionLayer.of(model.observations, tuple(monotone_in)) if monotone_in else None
+    fixed = repair(model, ctrl, horizon_cycles(model), price, layer, say, deadline=deadline)
+    header = {k: v for k, v in old.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
+    first = old.header.get("risk_repair", {})
+    entry = repair_entry(fixed, price)
+    if first:                                 # a table repaired before: the figures run from its compile
+        compiled = as_compiled(old).action
+        entry.update(p_hazard_before=first["p_hazard_before"], value_before=first["value_before"],
+                     raised=[[int(n), int(compiled[n]), int(a)]
+                             for n, a in enumerate(fixed.controller.action) if a != compiled[n]])
+    header.update(controller_value=fixed.value, risk_repair=entry)
+    c = fixed.controller
+    step = time_step_of(model)
+    return table_format.encode(header, c.action.tolist(), c.next.tolist(), node_risk(model, c, step).tolist(),
+                               describe_risk(model, step)), fixed
 
 
 def against_shipped(model: POMDP) -> Optional[dict]:
@@ -294,6 +360,7 @@ def figures(result: Result) -> dict:
         "compilation_loss_percent": (None if result.plain_value is None
                                      else compilation_loss_percent(sol.lower_bound, result.plain_value)),
         "shipped": result.shipped,
+        "risk_repair": result.repair,
         "iterations": sol.iterations,
         "stop_reason": sol.stop_reason,
         "seconds": result.seconds,
@@ -327,6 +394,16 @@ def shipped_lines(f: dict) -> list[str]:
             f"this table {diff:+.4f}{plain}: {'better' if diff > 0 else 'not better'} than the shipped one)"]
 
 
+def repair_lines(entry: Optional[dict]) -> list[str]:
+    """What the risk repair bought and paid, for a person (the solve summary, `table repair`)."""
+    if not entry:
+        return []
+    n = len(entry["raised"])
+    return [f"risk repair      P(hazard within {entry['horizon_s']:g} s) {entry['p_hazard_before']:.3g} -> "
+            f"{entry['p_hazard']:.3g} for {entry['value_before'] - entry['value']:.4f} of value ({n} node"
+            f"{'' if n == 1 else 's'} raised, each round at most {entry['hazard_price']:g} per unit of probability)"]
+
+
 def gap_percent(upper: float, value: float) -> float:
     """(upper - value) as a percentage of |upper|: how the solver's and the table's gaps are printed."""
     return 100.0 * (upper - value) / max(1e-12, abs(upper))
@@ -350,6 +427,7 @@ def summary_text(result: Result) -> str:
         f"upper bound      {f['upper_bound']:.4f}   ({describe_upper(own, result.relaxed and result.relaxed.entry(own))})",
         f"controller value {f['controller_value']:.4f}   (exact, {f['nodes']} nodes; witness-following before improvement: {f['naive_controller_value']:.4f})",
         *compilation_lines(f["controller_value_without_release_cost"], f["release_cost"], f["compilation_loss_percent"]),
+        *repair_lines(f["risk_repair"]),
         f"remaining gap    {gap_to_ub:.4f}   (upper bound - controller value: {f['certified_gap_percent']:.2f} % of |upper bound|;"
         " the table is within this of the optimum)",
         f"table            {f['table_bytes']} bytes, sha256 {f['sha256']}",

@@ -1,5 +1,6 @@
 """`railguard table show`: a table's header and its controller, node by node;
-`railguard table upgrade`: an older table file given the risk column format 2 requires."""
+`railguard table upgrade`: an older table file given the risk column format 2 requires;
+`railguard table repair`: a table's actions raised where they buy hazard cheaply (risk_repair.py)."""
 from __future__ import annotations
 
 import argparse
@@ -31,7 +32,7 @@ def show(args: argparse.Namespace) -> int:
 def upgrade(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas, with_risk, write_alphas_arrays
+    from monitor.offline.pipeline import with_risk
     from monitor.offline.table_view import risk_range
 
     from monitor.core.table import TableError, decode
@@ -48,15 +49,67 @@ def upgrade(args: argparse.Namespace) -> int:
     out.write_bytes(new_bytes)
     print(f"{out}: format {old.header.get('format_version')} -> {new.header['format_version']}, {new.nodes} nodes, "
           f"risk column {risk_range(new)}; SHA-256 {old.sha256[:12]} -> {new.sha256[:12]}")
+    tie_alphas(src, out, old.sha256, new.sha256, "upgraded")
+    return 0
 
-    def alphas_of(path: Path) -> Path:
+
+def tie_alphas(src, out, old_sha: str, new_sha: str, what: str, say=print) -> None:
+    """The alpha vectors beside `src` (NAME.alphas.npz, tied to `old_sha`), written beside
+    `out` tied to `new_sha`: a re-encoded table keeps the vectors belief tracking runs on."""
+    from monitor.offline.pipeline import ALPHAS_SUFFIX, TABLE_SUFFIX, read_alphas, write_alphas_arrays
+
+    def alphas_of(path):
         stem = path.name[:-len(TABLE_SUFFIX)] if path.name.endswith(TABLE_SUFFIX) else path.stem
         return path.with_name(stem + ALPHAS_SUFFIX)
 
     if alphas_of(src).is_file():
-        alphas, actions = read_alphas(alphas_of(src), old.sha256)
-        write_alphas_arrays(alphas_of(out), alphas, actions, new.sha256)
-        print(f"{alphas_of(out)}: alpha vectors tied to the upgraded table")
+        alphas, actions = read_alphas(alphas_of(src), old_sha)
+        write_alphas_arrays(alphas_of(out), alphas, actions, new_sha)
+        say(f"{alphas_of(out)}: alpha vectors tied to the {what} table")
+
+
+def repair(args: argparse.Namespace) -> int:
+    import time
+    from importlib import resources
+    from pathlib import Path
+
+    from monitor.core.table import TableError, decode
+    from monitor.offline.models import MODELS
+    from monitor.offline.params import ConfigError
+    from monitor.offline.pipeline import TABLE_SUFFIX, repaired, repair_lines
+    from monitor.offline.table_view import risk_range
+
+    shipped = args.file in ("m1", "m2")
+    src = Path(str(resources.files("monitor.tables").joinpath(args.file + TABLE_SUFFIX))) if shipped else Path(args.file)
+    try:
+        data = src.read_bytes()
+        old = decode(data)
+    except OSError as exc:
+        raise TableError(f"{src}: cannot read: {exc.strerror or exc}") from None
+    except TableError as exc:
+        raise TableError(f"{src}: {exc}") from None
+    spec = MODELS.get(str(old.header.get("model")))
+    price = args.price if args.price is not None else (spec.plan.hazard_price if spec else 0.0)
+    if not price > 0:
+        raise ConfigError(f"{src}: no hazard price for model {old.header.get('model')!r}: give --price "
+                          "(value per unit of P(hazard within 30 s))")
+    deadline = time.perf_counter() + args.time_budget if args.time_budget else None
+    say = (lambda text: None) if args.json else (lambda text: print(text, file=sys.stderr, flush=True))
+    try:
+        new_bytes, fixed = repaired(data, price, say, deadline)
+    except (ConfigError, ValueError) as exc:
+        raise TableError(f"{src}: {exc}") from None
+    new = decode(new_bytes)
+    out = Path(args.out) if args.out else (Path("railguard-out") / src.name if shipped else src)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_bytes(new_bytes)
+    tie_alphas(src, out, old.sha256, new.sha256, "repaired", say=say)
+    if args.json:
+        print(json.dumps({"table": str(out), "sha256_before": old.sha256, "sha256": new.sha256,
+                          **new.header["risk_repair"], "rounds": fixed.as_dict()["rounds"]}))
+        return 0
+    print("\n".join(repair_lines(new.header["risk_repair"])))
+    print(f"{out}: {new.nodes} nodes, risk column {risk_range(new)}; SHA-256 {old.sha256[:12]} -> {new.sha256[:12]}")
     return 0
 
 
@@ -90,3 +143,21 @@ def register(sub) -> None:
     u.add_argument("file", metavar="FILE", help="a .table.rgt file (format 1 or 2)")
     u.add_argument("--out", metavar="PATH", help="write here instead of over FILE (default: over FILE)")
     u.set_defaults(func=upgrade)
+    r = tsub.add_parser(
+        "repair",
+        help="raise a table's actions where they remove hazard cheaply (P(hazard within 30 s))",
+        description="The risk repair `railguard solve` runs after compiling, on a table file: while some stronger "
+                    "action at some node removes P(hazard within 30 s) (exact closed loop, the curves in front) "
+                    "for less than PRICE of the model's value per unit of probability, raise it (a batch per "
+                    "round, each checked exactly; actions only rise, and stay monotone in the reported "
+                    "conditions). The header records what it bought and paid; the risk column is recomputed; "
+                    "the alpha vectors beside the file are tied to the new digest. An m2 round takes about 40 s.",
+    )
+    r.add_argument("file", metavar="m1|m2|FILE", help="a shipped table or a .table.rgt file")
+    r.add_argument("--price", type=float, metavar="PRICE",
+                   help="value per unit of P(hazard) (default: the model's plan, m1 20000; m2 has none)")
+    r.add_argument("--out", metavar="PATH",
+                   help="write here (default: over FILE; a shipped table goes to railguard-out/NAME.table.rgt)")
+    r.add_argument("--time-budget", type=float, metavar="S", help="start no round that would end after S seconds (default: no limit)")
+    r.add_argument("--json", action="store_true", help="print the figures as JSON (no progress)")
+    r.set_defaults(func=repair)
