@@ -125,6 +125,9 @@ def test_table_repair_command(tmp_path):
     assert got["sha256"] == new.sha256 and new.header["risk_repair"]["p_hazard"] == got["p_hazard"]
     assert got["p_hazard"] <= got["p_hazard_before"]
     read_alphas(tmp_path / "m1.alphas.npz", new.sha256)          # tied to the new digest
+    shown = subprocess.run([sys.executable, "-m", "railguard", "table", "show", str(out)],
+                           capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert shown.returncode == 0 and "risk repair      P(hazard within 30 s) 0.000906 -> 3.72e-05" in shown.stdout
     # m2 has no price of its own: refused in one line, exit 2
     run = subprocess.run([sys.executable, "-m", "railguard", "table", "repair", "m2", "--out", str(tmp_path / "x")],
                          capture_output=True, text=True, cwd=ROOT, timeout=300)

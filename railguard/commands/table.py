@@ -24,8 +24,11 @@ def show(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({**table_view.as_json(table), **figures}))
     else:
+        from monitor.offline.pipeline import repair_lines
+
         loop = None if args.full else table_view.closed_loop(table)
-        sys.stdout.write(table_view.render(table, full=args.full, loop=loop, extra=table_view.compilation_text(figures)))
+        extra = table_view.compilation_text(figures) + repair_lines(table.header.get("risk_repair"))
+        sys.stdout.write(table_view.render(table, full=args.full, loop=loop, extra=extra))
     return 0
 
 
