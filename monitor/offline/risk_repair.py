@@ -7,16 +7,18 @@ hazard that builds up over many seconds costs the discounted reward almost nothi
 compiled table (and belief tracking with the same alpha vectors) leaves hazard that stronger
 braking at a few rarely visited nodes removes at little value. Measured on m1's table of
 issue 40: raising 7 of its 30 nodes takes P(hazard) from 9.06e-4 to 3.72e-5 for 1.12 of
-value (172.19 -> 171.07); on m2's, 38 raises take it from 3.14e-5 to 2.81e-5 for 0.0065.
+value (172.19 -> 171.07); on m2's, 18 raises (and the nodes they force) take it from 3.14e-5
+to 2.81e-5 for 0.0065.
 
 How: greedy on the exact chain. For every table node and every stronger action, the
 first-order change of P(hazard within the horizon) (forward occupancy of the supervised
 two-phase chain times the one-cycle deviation of the backward reach) and of the value at b0
-(discounted visits times the node's action values, release cost included). The candidates
-with the most hazard removed per value lost are evaluated exactly, and the best exact one is
-kept with every action it forces for monotonicity (conditions raised never lower the demand,
-docs/models.md section 6). It stops when no raise removes hazard at less than `price` value
-per unit of probability. Actions are only raised, so the table never brakes less anywhere.
+(discounted visits times the node's action values, release cost included). Each round tries
+the cheapest raises by value lost per hazard removed (all below `price`, then half of them, a
+quarter, ... one), each batch with every action it forces for monotonicity (conditions raised
+never lower the demand, docs/models.md section 6) and checked exactly, and keeps the first that
+costs less than `price`. It stops when no batch does. Actions are only raised, so the table
+never brakes less anywhere.
 """
 from __future__ import annotations
 
