@@ -195,9 +195,7 @@ def _run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]
     relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
     ctrl = comp.controller
     say("risk column: each node's P(hazard within the horizon) on the exact closed loop")
-    step = time_step_of(model)
-    data = table_format.encode(table_header(model, plan, sol, comp, relaxed, repaired), ctrl.action.tolist(),
-                               ctrl.next.tolist(), node_risk(model, ctrl, step).tolist(), describe_risk(model, step))
+    data = encode_with_risk(table_header(model, plan, sol, comp, relaxed, repaired), model, ctrl)
     plain = plain_value(model, ctrl) if model.release_cost else comp.value     # (no release cost: the same value)
     return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain, against_shipped(model),
                   repaired)
@@ -240,7 +238,7 @@ def repaired(data: bytes, price: float, say: Callable[[str], None] = lambda text
     monotone_in = old.header.get("solver", {}).get("monotone_in")
     layer = ConditionLayer.of(model.observations, tuple(monotone_in)) if monotone_in else None
     fixed = repair(model, ctrl, horizon_cycles(model), price, layer, say, deadline=deadline)
-    header = {k: v for k, v in old.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
+    header = own_header(old)
     first = old.header.get("risk_repair", {})
     entry = repair_entry(fixed, price)
     if first:                                 # a table repaired before: the figures run from its compile
@@ -249,10 +247,19 @@ def repaired(data: bytes, price: float, say: Callable[[str], None] = lambda text
                      raised=[[int(n), int(compiled[n]), int(a)]
                              for n, a in enumerate(fixed.controller.action) if a != compiled[n]])
     header.update(controller_value=fixed.value, risk_repair=entry)
-    c = fixed.controller
+    return encode_with_risk(header, model, fixed.controller), fixed
+
+
+def own_header(table: table_format.Table) -> dict:
+    """A decoded table's header without what encoding derives (size, index width, format, risk)."""
+    return {k: v for k, v in table.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
+
+
+def encode_with_risk(header: dict, model: POMDP, ctrl: Controller) -> bytes:
+    """A table file of the controller with its risk column computed on the model's exact chain."""
     step = time_step_of(model)
-    return table_format.encode(header, c.action.tolist(), c.next.tolist(), node_risk(model, c, step).tolist(),
-                               describe_risk(model, step)), fixed
+    return table_format.encode(header, ctrl.action.tolist(), ctrl.next.tolist(), node_risk(model, ctrl, step).tolist(),
+                               describe_risk(model, step))
 
 
 def against_shipped(model: POMDP) -> Optional[dict]:
@@ -293,11 +300,7 @@ def with_risk(data: bytes) -> tuple[bytes, table_format.Table]:
     """A table file (format 1 or 2) re-encoded in the current format with its risk column
     recomputed; the controller is unchanged, so only the header's risk and the digest move."""
     old = table_format.decode_for_upgrade(data)
-    model = rebuild(dict(old.header))
-    step = time_step_of(model)
-    header = {k: v for k, v in old.header.items() if k not in ("nodes", "index_bytes", "format_version", "risk")}
-    new = table_format.encode(header, old.action, old.next, risk_column(old, model), describe_risk(model, step))
-    return new, old
+    return encode_with_risk(own_header(old), rebuild(dict(old.header)), Controller.of_table(old)), old
 
 
 def relaxed_bound(relax: Relaxation, plan: Plan, deadline: float, say: Callable[[str], None]) -> Optional[RelaxedBound]:
