@@ -102,8 +102,14 @@ def test_solve_m1_then_table_show(capsys, tmp_path):
     # the plan's risk repair ran (issue 41): the header and the JSON say what it bought and paid
     fix = obj["risk_repair"]
     assert fix == t.header["risk_repair"] and fix["hazard_price"] == 20000.0
-    assert fix["p_hazard"] < fix["p_hazard_before"] / 10 and fix["value"] == obj["controller_value"]
+    assert fix["p_hazard"] < fix["p_hazard_before"] / 10
     assert f"risk repair      P(hazard within 30 s) {fix['p_hazard_before']:.3g} -> {fix['p_hazard']:.3g}" in summary
+    # then the warning confirmation, from the repaired table (docs/models.md section 9)
+    conf = obj["warning_confirmation"]
+    assert conf == t.header["warning_confirmation"] and conf["cycles"] == 10 and conf["paths"] == [[13, 1, 23]]
+    assert conf["value_before"] == fix["value"] and conf["value"] == obj["controller_value"] == t.header["controller_value"]
+    assert conf["p_hazard_before"] == pytest.approx(fix["p_hazard"], rel=1e-12) and obj["nodes"] == conf["nodes_before"] + 10
+    assert "confirmation     a warning alone escalates 10 cycles later (1 path, 10 nodes added)" in summary
 
     code, out, err = run_main(capsys, ["table", "show", table_path])
     assert code == 0, err

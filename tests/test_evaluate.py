@@ -427,13 +427,16 @@ def test_shipped_table_against_the_rules_it_is_held_to_and_the_verdicts_stated(e
 
 
 def test_a_statement_holds_only_while_the_decisions_say_it():
-    def comp(p, u):
-        return {"figures": {"p_hazard": {"decision": p}, "unnecessary_braking": {"decision": u}}}
+    def comp(p, u, c="better"):
+        return {"figures": {"p_hazard": {"decision": p}, "unnecessary_braking": {"decision": u},
+                            "demand_changes_per_encounter": {"decision": c}}}
 
     assert ev.holds_statement("m1", "belief_tracking", comp("better", "better"), quick=False)
     assert not ev.holds_statement("m1", "belief_tracking", comp("better", "indistinguishable"), quick=False)
     assert ev.holds_statement("m1", "belief_tracking", comp("better", "indistinguishable"), quick=True)
     assert not ev.holds_statement("m1", "belief_tracking", comp("better", "worse"), quick=True)
+    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "better", "indistinguishable"), quick=False)
+    assert not ev.holds_statement("m1", "belief_tracking", comp("better", "better", "worse"), quick=True)
     assert not ev.holds_statement("m2", "belief_tracking", comp("worse", "better"), quick=True)
     assert ev.holds_statement("m2", "belief_tracking", comp("worse", "worse"), quick=False)
     assert ev.holds_statement("m2", "threshold", comp("better", "worse"), quick=False)

@@ -294,6 +294,8 @@ def test_toml_unknown_solver_key_names_the_key(tmp_path):
         ("crash_energy_weighting = 1\n", "crash_energy_weighting"),
         ("alpha1_m = true\n", "alpha1_m"),
         ("rewards = [1.0, 2.0]\n", "rewards"),
+        ("[solver]\nwarning_confirmation = -1\n", "warning_confirmation"),
+        ("[solver]\nwarning_confirmation = 1.5\n", "warning_confirmation"),
     ],
 )
 def test_toml_wrong_type_is_refused(tmp_path, text, key):

@@ -26,14 +26,15 @@ from conftest import ROOT
 
 @pytest.fixture(scope="module")
 def m1():
-    """Model 1 and its table as compiled, before the repair (the shipped table is repaired)."""
+    """Model 1 and its table as compiled, before the repair and the warning confirmation (the
+    shipped table has both; the model prices the confirmation's wait as a free raise)."""
     from dataclasses import replace
 
     from monitor.offline.pipeline import run
 
     model, plan = load("m1")
-    table = decode(run(model, replace(plan, hazard_price=0.0)).table)
-    assert "risk_repair" not in table.header
+    table = decode(run(model, replace(plan, hazard_price=0.0, warning_confirmation=0)).table)
+    assert "risk_repair" not in table.header and "warning_confirmation" not in table.header
     return model, Controller.of_table(table), plan
 
 

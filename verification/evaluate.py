@@ -366,16 +366,16 @@ def plot(result: dict, path: Path) -> Path:
 
 FRONTIERS = Path(__file__).resolve().parents[1] / "docs" / "verification"
 SHARP_SWEEP = "sweep-own-belief-tracking.json"    # the sweep with each point's own belief tracking (issue 31)
-# The baselines each model's shipped table is held to in `railguard verify` (ACAS X's rule), and
-# on which figures: the verdict on them must be `better`; a Pareto point must meet the same to be
-# recommended. m1's risk-repaired table (issue 41) is held to belief tracking on p_hazard too
-# (3.72e-5 against 8.87e-4); m2 to threshold on p_hazard only (STATED: its needless braking is
-# no better than threshold's since issue 29's memory, and belief tracking is safer).
+# The baselines each model's shipped table is held to in `railguard verify` (ACAS X's rule), and on
+# which figures: the verdict on them must be `better`; a Pareto point must meet the same to be recommended.
+# m1's risk-repaired table (issue 41) is held to belief tracking on p_hazard too (3.72e-5 against 8.87e-4);
+# m2 to threshold on p_hazard only (STATED: its needless braking is no better than threshold's since issue
+# 29's memory, and belief tracking is safer).
 ACCEPTED = {"m1": {"threshold": ACCEPTANCE, "belief_tracking": ("p_hazard",)}, "m2": {"threshold": ("p_hazard",)}}
-# The decisions on ACCEPTANCE the README states where a table is not held to `better`: per
-# figure, the decisions that agree with the statement. `railguard verify` checks them at full
-# size; at the quick size (a sixth of the trains) `indistinguishable` also agrees.
-STATED = {("m1", "belief_tracking"): {"unnecessary_braking": ("better",)},   # full: -0.0058 +- 0.0010 (issue 41)
+# The decisions the README states where a table is not held to `better`: per figure, the decisions that
+# agree with it. `railguard verify` checks them at full size; quick (a sixth of the trains): or indistinguishable.
+# m1 full, seed 12 (issue 41, 10-cycle warning confirmation): needless -0.0045 +- 0.0010, changes -2.8 +- 1.5
+STATED = {("m1", "belief_tracking"): {"unnecessary_braking": ("better",), "demand_changes_per_encounter": ("better",)},
           # full size, seed 12 (issue 41's table and world): +0.00249 +- 0.00087 of low-risk time
           ("m2", "belief_tracking"): {"p_hazard": ("worse",), "unnecessary_braking": ("worse",)},
           # full size, seed 12: +0.0085 +- 0.0017 (issue 41; before, +0.0023 +- 0.0027 of obstacle-free time)

@@ -13,12 +13,14 @@ from .. import __version__
 from ..core import table as table_format
 from . import pomdp_file
 from .closed_chain import hazard_states
+from .confirmation import confirm, confirmation_lines, undone
 from .controller import Compiled, Controller, compilation_loss_percent, compile_controller, plain_value
 from .layered import ConditionLayer, base_model, compile_monotone
 from .models import Plan, rebuild
+from .params import ConfigError
 from .node_risk import HORIZON_S, node_risk
 from .node_risk import describe as describe_risk
-from .risk_repair import Repair, repair
+from .risk_repair import Repair, monotone_pairs, repair
 from .table_view import risk_range
 from .pomdp import POMDP
 from .relaxation import Relaxation, describe_upper
@@ -59,6 +61,7 @@ class Result:
     plain_value: Optional[float] = None      # the table's value without the release cost (controller.plain_value)
     shipped: Optional[dict] = None           # the shipped table of the same model, if any (against_shipped)
     repair: Optional[dict] = None            # the risk repair's figures (repair_entry), if the plan asks for one
+    confirmation: Optional[dict] = None      # the warning confirmation's (confirmation.py), if the plan asks for one
 
     @property
     def sha256(self) -> str:
@@ -103,11 +106,14 @@ def model_digest(model: POMDP) -> str:
 
 
 def table_header(model: POMDP, plan: Plan, sol: Solution, comp: Compiled,
-                 relaxed: Optional[RelaxedBound] = None, repaired: Optional[dict] = None) -> dict:
+                 relaxed: Optional[RelaxedBound] = None, repaired: Optional[dict] = None,
+                 confirmed: Optional[dict] = None) -> dict:
     """Everything a reader needs to trust and interpret the table; nothing time-dependent."""
     extra = {} if relaxed is None else {"relaxation": relaxed.entry(sol.upper_bound)}
     if repaired is not None:
         extra["risk_repair"] = repaired
+    if confirmed is not None:
+        extra["warning_confirmation"] = confirmed
     return {
         "format": "railguard-table",
         "railguard_version": __version__,
@@ -192,13 +198,23 @@ def _run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]
                        layer if plan.conditions else None, say, deadline=start + REPAIR_SHARE * budget)
         comp, repaired = replace(comp, controller=fixed.controller, values=fixed.values, value=fixed.value), \
             repair_entry(fixed, plan.hazard_price)
+    confirmation = None
+    if plan.warning_confirmation:
+        part: dict = {}
+        try:
+            ctrl, entry, V = _confirmed(model, part, comp.controller, plan.warning_confirmation,
+                                        layer if plan.conditions else None)
+        except ValueError as exc:
+            raise ConfigError(f"[solver] warning_confirmation: {exc}") from None
+        if "warning_confirmation" in part:
+            confirmation, comp = entry, replace(comp, controller=ctrl, values=V, value=entry["value"])
     relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
     ctrl = comp.controller
     say("risk column: each node's P(hazard within the horizon) on the exact closed loop")
-    data = encode_with_risk(table_header(model, plan, sol, comp, relaxed, repaired), model, ctrl)
+    data = encode_with_risk(table_header(model, plan, sol, comp, relaxed, repaired, confirmation), model, ctrl)
     plain = plain_value(model, ctrl) if model.release_cost else comp.value     # (no release cost: the same value)
     return Result(model, plan, sol, comp, data, time.perf_counter() - start, relaxed, plain, against_shipped(model),
-                  repaired)
+                  repaired, confirmation)
 
 
 def horizon_cycles(model: POMDP) -> int:
@@ -214,31 +230,66 @@ def repair_entry(fixed: Repair, price: float) -> dict:
 
 
 def as_compiled(table: table_format.Table) -> Controller:
-    """The table's controller as compiled, before its risk repair (the header's `raised`
-    entries undone): the controller the same alpha vectors gave, which guides belief
+    """The table's controller as compiled, before its risk repair and warning confirmation (the
+    header's entries undone): the controller the same alpha vectors gave, which guides belief
     tracking's sharp hazard estimate (a guide much safer than the policy it guides is not one)."""
     ctrl = Controller.of_table(table)
+    if "warning_confirmation" in table.header:
+        try:
+            ctrl = undone(ctrl, table.header["warning_confirmation"])
+        except ValueError:
+            return ctrl               # a header copied onto another controller: nothing to undo
     raised = table.header.get("risk_repair", {}).get("raised", [])
     if not all(0 <= n < ctrl.nodes and ctrl.action[n] == after for n, _before, after in raised):
-        return ctrl                   # a header copied onto another controller: nothing to undo
+        return ctrl
     action = ctrl.action.copy()
     for node, before, _after in raised:
         action[node] = before
     return Controller(action, ctrl.next, ctrl.start)
 
 
+def _opened(data: bytes) -> tuple[table_format.Table, POMDP, Controller, dict, Optional[dict],
+                                  Optional[ConditionLayer]]:
+    """(table, its model, its controller without a warning confirmation, its own header without
+    that entry, the entry, the condition layer it is monotone in)."""
+    old = table_format.decode(data)
+    model = rebuild(dict(old.header))
+    header = own_header(old)
+    ctrl = Controller.of_table(old)
+    entry = header.pop("warning_confirmation", None)
+    if entry:
+        ctrl = undone(ctrl, entry)
+    monotone_in = old.header.get("solver", {}).get("monotone_in")
+    layer = ConditionLayer.of(model.observations, tuple(monotone_in)) if monotone_in else None
+    return old, model, ctrl, header, entry, layer
+
+
+def _confirmed(model: POMDP, header: dict, ctrl: Controller, cycles: int,
+               layer: Optional[ConditionLayer]) -> tuple[Controller, dict, np.ndarray]:
+    """(the controller with its warnings confirmed `cycles` cycles, the entry, its exact values);
+    refused where adverse conditions would lower the demand; the header's entry and controller
+    value follow."""
+    conf = confirm(model, ctrl, cycles)
+    pairs = monotone_pairs(conf.controller, layer)
+    if pairs is not None and (conf.controller.action[pairs[:, 1]] < conf.controller.action[pairs[:, 0]]).any():
+        raise ValueError(f"a {cycles}-cycle confirmation would let adverse reported conditions lower the demand "
+                         "(the table must stay monotone in them)")
+    entry, values = conf.entry(model, ctrl, horizon_cycles(model))
+    if conf.paths:
+        header["warning_confirmation"] = entry
+    header["controller_value"] = entry["value"]
+    return conf.controller, entry, values
+
+
 def repaired(data: bytes, price: float, say: Callable[[str], None] = lambda text: None,
              deadline: Optional[float] = None) -> tuple[bytes, Repair]:
     """A table file with its actions raised by the risk repair at `price` (`railguard table
     repair`): the header's controller value and `risk_repair` entry follow, the risk column is
-    recomputed; the rest of the header (bounds, solver) is the solve's."""
-    old = table_format.decode(data)
-    model = rebuild(dict(old.header))
-    ctrl = Controller.of_table(old)
-    monotone_in = old.header.get("solver", {}).get("monotone_in")
-    layer = ConditionLayer.of(model.observations, tuple(monotone_in)) if monotone_in else None
+    recomputed; the rest of the header (bounds, solver) is the solve's. A warning confirmation
+    is undone before and redone after, as `railguard solve` orders them (the model prices the
+    wait it adds as a free raise)."""
+    old, model, ctrl, header, confirmation, layer = _opened(data)
     fixed = repair(model, ctrl, horizon_cycles(model), price, layer, say, deadline=deadline)
-    header = own_header(old)
     first = old.header.get("risk_repair", {})
     entry = repair_entry(fixed, price)
     if first:                                 # a table repaired before: the figures run from its compile
@@ -247,7 +298,20 @@ def repaired(data: bytes, price: float, say: Callable[[str], None] = lambda text
                      raised=[[int(n), int(compiled[n]), int(a)]
                              for n, a in enumerate(fixed.controller.action) if a != compiled[n]])
     header.update(controller_value=fixed.value, risk_repair=entry)
-    return encode_with_risk(header, model, fixed.controller), fixed
+    ctrl = fixed.controller
+    if confirmation:
+        ctrl = _confirmed(model, header, ctrl, confirmation["cycles"], layer)[0]
+    return encode_with_risk(header, model, ctrl), fixed
+
+
+def confirmed(data: bytes, cycles: int) -> tuple[bytes, dict]:
+    """A table file whose warnings are confirmed `cycles` cycles (`railguard table confirm`):
+    a confirmation the header records is undone first, so 0 gives the table without one.
+    The header's controller value and `warning_confirmation` entry follow (the entry's
+    figures run from the unconfirmed table), the risk column is recomputed."""
+    _old, model, ctrl, header, _entry, layer = _opened(data)
+    ctrl, entry, _values = _confirmed(model, header, ctrl, cycles, layer)
+    return encode_with_risk(header, model, ctrl), entry
 
 
 def own_header(table: table_format.Table) -> dict:
@@ -364,6 +428,7 @@ def figures(result: Result) -> dict:
                                      else compilation_loss_percent(sol.lower_bound, result.plain_value)),
         "shipped": result.shipped,
         "risk_repair": result.repair,
+        "warning_confirmation": result.confirmation,
         "iterations": sol.iterations,
         "stop_reason": sol.stop_reason,
         "seconds": result.seconds,
@@ -431,6 +496,7 @@ def summary_text(result: Result) -> str:
         f"controller value {f['controller_value']:.4f}   (exact, {f['nodes']} nodes; witness-following before improvement: {f['naive_controller_value']:.4f})",
         *compilation_lines(f["controller_value_without_release_cost"], f["release_cost"], f["compilation_loss_percent"]),
         *repair_lines(f["risk_repair"]),
+        *confirmation_lines(f["warning_confirmation"]),
         f"remaining gap    {gap_to_ub:.4f}   (upper bound - controller value: {f['certified_gap_percent']:.2f} % of |upper bound|;"
         " the table is within this of the optimum)",
         f"table            {f['table_bytes']} bytes, sha256 {f['sha256']}",
