@@ -350,16 +350,6 @@ def time_step_of(model: POMDP) -> float:
     return float(model.params.get("time_step_s", 0.1))
 
 
-def risk_column(table: table_format.Table, model: Optional[POMDP] = None) -> list[int]:
-    """Each node's risk (ppm) recomputed from the exact chain of the model the table names
-    (rebuilt from its header and checked against its model_sha256, unless given)."""
-    from .controller import Controller
-
-    model = model if model is not None else rebuild(dict(table.header))
-    ctrl = Controller.of_table(table)
-    return node_risk(model, ctrl, time_step_of(model)).tolist()
-
-
 def with_risk(data: bytes) -> tuple[bytes, table_format.Table]:
     """A table file (format 1 or 2) re-encoded in the current format with its risk column
     recomputed; the controller is unchanged, so only the header's risk and the digest move."""

@@ -143,11 +143,10 @@ def repair(args: argparse.Namespace) -> int:
 def confirm(args: argparse.Namespace) -> int:
     from monitor.core.table import TableError
     from monitor.offline.confirmation import confirmation_lines
+    from monitor.offline.models import MODELS
     from monitor.offline.params import ConfigError
     from monitor.offline.pipeline import confirmed
     from monitor.offline.table_view import risk_range
-
-    from monitor.offline.models import MODELS
 
     src, data, old, shipped = _source(args.file)
     spec = MODELS.get(str(old.header.get("model")))
