@@ -27,6 +27,8 @@ from .build import BuildError
 from .lsbus_system import STEP_S, Node, build_bus, build_container, build_player, run_container
 from .network_nodes import build_monitor_node
 
+REPLAY_PHASE_MS = 1     # a real-time log's monitor node decides 1 ms after its tick (on_ticks)
+
 
 @dataclass
 class Replay:
@@ -88,19 +90,23 @@ def trace_frames(trace: Path, ids, node: int) -> list:
                 if r["kind"] == "delivered" and int(r["id"], 16) in ids and int(r["node"]) == node]
 
 
-def aligned(inputs: list, recorded: list, period_s: float) -> list:
-    """A real-time log's inputs moved onto the replay's cycle grid: the recorded monitor sent
-    its cycle k's BrakeDemand at B_k, after draining what had arrived; a frame that arrived
-    between B_(k-1) and B_k was drained by cycle k, so it is played at k x period (the replayed
-    monitor decides cycle k at k x period + phase). Frames after the last cycle are left out."""
+def on_ticks(inputs: list, recorded: list, period_s: float) -> list:
+    """A real-time log's inputs moved onto the replay's clock so that each reaches the replayed
+    monitor with the tick the recorded one gave it. The recorded monitor decided cycle k at tick
+    T0 + k x period (its clock's grid) and sent the BrakeDemand a latency L_k >= 0 later, so
+    T0 is the low edge of B_k - k x period (the 5th percentile: the latency varies by a fraction
+    of a ms, and the last word sent on SIGTERM sits a period low); a frame stamped s got the
+    tick s - T0 and was drained by the first cycle at or after it. The replayed monitor ticks at
+    k x period and decides phase_ms (REPLAY_PHASE_MS) later, taking a frame's arrival in whole
+    ms as its tick: a frame played at s - T0 keeps both its tick and its cycle (to the ms that
+    T0's estimate and the bus's delivery may add). Frames before the replay's start or after
+    the last cycle are left out."""
     sends = [t for t, fid, _ in recorded if fid == BRAKE_DEMAND_ID]
-    out, k = [], 0
-    for t, fid, fd, data in inputs:
-        while k < len(sends) and sends[k] <= t:
-            k += 1
-        if k < len(sends):
-            out.append((k * period_s, fid, fd, data))
-    return out
+    if not sends:
+        return []
+    t0 = sorted(t - k * period_s for k, t in enumerate(sends))[len(sends) // 20]
+    end = len(sends) * period_s
+    return [(t - t0, fid, fd, data) for t, fid, fd, data in inputs if 0.0 <= t - t0 <= end]
 
 
 def replay(log: Path, table_bytes: bytes, out_dir: Path, keys: Optional[Path] = None,
@@ -109,21 +115,24 @@ def replay(log: Path, table_bytes: bytes, out_dir: Path, keys: Optional[Path] = 
     """Replay `log` through monitor node (`monitor_fmu`, else built from the table and keys) +
     player + bus; compare the monitor's frames in order.
     `realtime`: the log is a wall-clock recording (vcan0, two processes): its inputs are put on
-    the cycle grid the recorded monitor drained them on (`aligned`); a simulated-clock log
+    the replay's clock with the ticks the recorded monitor gave them (`on_ticks`; the monitor node
+    decides REPLAY_PHASE_MS after its tick); a simulated-clock log
     (`railguard run` on the in-process bus) is already on it."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     inputs, recorded = read_log(Path(log), keys)
     if realtime:
-        inputs = aligned(inputs, recorded, period_s)
+        inputs = on_ticks(inputs, recorded, period_s)
     monitor = monitor_fmu or build_monitor_node(table_bytes, out_dir, keys=keys)
     if Path(monitor).parent.resolve() != out_dir.resolve():
         monitor = Path(shutil.copy(monitor, out_dir / "monitor.fmu"))
     player = build_player(inputs, out_dir, "player.fmu")
     bus = build_bus(2, out_dir)
     trace = out_dir / "replay-trace.csv"
-    container = build_container([Node(monitor), Node(player)], bus, out_dir / "replay.fmu", STEP_S,
-                                {("canbus.fmu", "trace_file"): str(trace)})
+    starts = {("canbus.fmu", "trace_file"): str(trace)}
+    if realtime:
+        starts[(Path(monitor).name, "phase_ms")] = REPLAY_PHASE_MS
+    container = build_container([Node(monitor), Node(player)], bus, out_dir / "replay.fmu", STEP_S, starts)
     end = duration_s if duration_s is not None else inputs[-1][0] + 0.05
     run_container(container, end)
     replayed = trace_frames(trace, set(OUTPUT_IDS), node=0)

@@ -66,3 +66,20 @@ def test_frames_the_monitor_did_not_send_are_told_apart(setup):
     hostile = [f for f in inputs if f[1] == 0x10]
     assert hostile and len(recorded) % 4 == 0
     assert [fid for _, fid, _ in recorded] == [0x10, 0x40, 0x41, 0x42] * (len(recorded) // 4)
+
+
+def test_a_wall_clock_log_keeps_the_ticks_the_recorded_monitor_gave():
+    """on_ticks: the recorded monitor ticked at T0 + k x 100 ms and sent each BrakeDemand a
+    latency after (up to 3 ms, the SIGTERM word a period low); a frame stamped s must reach the
+    replayed monitor (ticks k x 100 ms, deciding REPLAY_PHASE_MS later) at s - T0, so that its
+    age and its cycle are the recorded ones; frames before the replay or after it are dropped.
+    The earlier alignment put every frame on the next tick (age 0 instead of 90 ms)."""
+    from can_bus.codec import BRAKE_DEMAND_ID
+    t0, latency = -0.0778, [0.0002, 0.0009, 0.0004, 0.003, 0.0001] * 8
+    recorded = [(t0 + k * 0.1 + d, BRAKE_DEMAND_ID, b"") for k, d in enumerate(latency)]
+    recorded.append((recorded[-1][0] + 0.003, BRAKE_DEMAND_ID, b""))       # the last word on SIGTERM
+    inputs = [(t0 - 0.01, 0x20, False, b"a"), (t0 + 0.0123, 0x20, False, b"b"), (t0 + 2.0101, 0x21, False, b"c"),
+              (t0 + 5.0, 0x21, False, b"d")]
+    played = lsbus_replay.on_ticks(inputs, recorded, 0.1)
+    assert [d for _, _, _, d in played] == [b"b", b"c"]
+    assert [round(t, 4) for t, _, _, _ in played] == [0.0122, 2.01]

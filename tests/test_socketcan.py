@@ -119,37 +119,52 @@ def test_monitor_status_carries_the_table_hash(session):
     assert {s["Mode"] for s in status} >= {1, 2}                        # NORMAL, and DEGRADED during the fault
 
 
+def decoded_cycles(result, frame_id: int) -> dict:
+    """{cycle: (recorded, replayed)} of one output frame's decoded signals, where they differ."""
+    msg = database().get_message_by_frame_id(frame_id)
+    return {k: tuple(msg.decode(bytes.fromhex(x)[:8], decode_choices=False) for x in (a, b))
+            for k, fid, a, b in result.mismatches if fid == frame_id}
+
+
+def node_runs(status: dict) -> list[list[int]]:
+    """The runs of consecutive cycles in which the two monitors' tables were in different nodes."""
+    runs: list[list[int]] = []
+    for k in sorted(k for k, (a, b) in status.items() if a["Node"] != b["Node"]):
+        if runs and runs[-1][-1] == k - 1:
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    return runs
+
+
 def test_the_monitor_on_the_ls_bus_decides_as_the_monitor_on_vcan0(session, tmp_path):
     """Issue 42: the session's candump replayed through the FMI-LS-BUS system (the C monitor
     node, a player node, our bus simulation, fmucontainer, FMPy) brakes as the monitor on vcan0
-    did. The monitor on vcan0 ran on the wall clock beside the player process, so each input is
-    put on the cycle that drained it (fmu.lsbus_replay.aligned); what the wall clock decided
-    cannot be replayed exactly: which of the player's first frames the monitor's socket saw
-    (the processes start apart: the first 10 cycles are not judged), and each report's tick,
-    which decides a report's age where a silence starts, the remembered distance projected from
-    it and the risk's rounding (measured: up to 23 of 402 cycles differ in those fields). The
-    decision must not: every judged cycle's brake level is vcan0's. A start-up difference that
-    moved the table onto another path is carried until the paths meet (the status frame's node):
-    since m1's warnings are confirmed for 10 cycles (issue 41), a start-up "emergency" report one
-    side saw and the other did not is carried 10 cycles longer (measured 2026-11-30: the recorded
-    monitor in node 20 at cycle 5, the replay on the warning path, the nodes equal again at cycle
-    18), so judging starts where the nodes first agree after cycle 10, at the latest cycle 30. With
-    the wrong table (m2) 381 and 382 cycles of two sessions differ in level; test_lsbus_monitor
-    holds every field to the Python monitor exactly on the simulated clock."""
+    did. The monitor on vcan0 ran on the wall clock beside the player process; the replay puts
+    each input on the tick the recorded monitor gave it (fmu.lsbus_replay.on_ticks: on eight
+    sessions 0 to 91 of 401 cycles differ in any field, none in a brake level or a table node).
+    What the wall clock decided cannot be replayed exactly: a frame that arrived as the recorded
+    monitor woke was drained by one of two cycles (the voted distance moves by one report, 0.1
+    to 1.5 m), and a tick is known to the ms. Where that happens at a zone's edge (this
+    scenario's obstacle meets the emergency zone at about cycle 6) the table may take another
+    path, and since issue 41 confirms a warning for 10 cycles, the paths meet again up to 14
+    cycles later (CI, 2026-11-30, on the earlier alignment: levels apart from cycle 21). So the
+    decision is judged where it must agree: in every cycle in which both tables are in the same
+    node, the brake level (table and supervision) is vcan0's, and the nodes part for at most 15
+    cycles at a time and 30 in all. With the wrong table (m2) 380 and 381 levels of two sessions
+    differ, 373 and 374 of them where the nodes agree; test_lsbus_monitor holds every field to
+    the Python monitor exactly on the simulated clock."""
     from fmu import lsbus_replay
     from monitor import tables
 
     result = lsbus_replay.replay(session / "bus.log", tables.read("m1"), tmp_path, keys=None, realtime=True)
     assert result.compared // 4 >= 300, result
-    db = database()
-    brake, status = db.get_message_by_frame_id(BRAKE_DEMAND_ID), db.get_message_by_frame_id(MONITOR_STATUS_ID)
-    apart = {k for k, fid, a, b in result.mismatches if fid == MONITOR_STATUS_ID
-             and status.decode(bytes.fromhex(a)[:8])["Node"] != status.decode(bytes.fromhex(b)[:8])["Node"]}
-    start = next(k for k in range(10, 10_000) if k not in apart)
-    assert start <= 30, sorted(apart)
-    levels = [(k, brake.decode(bytes.fromhex(a))["Level"], brake.decode(bytes.fromhex(b))["Level"])
-              for k, fid, a, b in result.mismatches if fid == BRAKE_DEMAND_ID and k >= start]
-    assert all(str(x) == str(y) for _, x, y in levels), levels
+    runs = node_runs(decoded_cycles(result, MONITOR_STATUS_ID))
+    apart = {k for run in runs for k in run}
+    levels = [(k, a["Level"], b["Level"]) for k, (a, b) in decoded_cycles(result, BRAKE_DEMAND_ID).items()
+              if k not in apart]
+    assert not levels, (levels, runs)
+    assert max(map(len, runs), default=0) <= 15 and len(apart) <= 30, runs
 
 
 def test_sandbox_leaves_nothing_behind():
