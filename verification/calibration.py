@@ -34,7 +34,6 @@ speed, not on what the monitor saw.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -45,6 +44,7 @@ from monitor.tables import read
 
 from . import seed000, seed001
 from .report import Check, Section, md_table
+from .world_metrics import ratio
 
 HORIZON_STEPS = 300                 # 30 s at the worlds' 0.1 s
 EDGES_PPM = (0, 30, 100, 300, 1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_001)
@@ -100,17 +100,9 @@ def bins(risk: np.ndarray, label: np.ndarray) -> list[Bin]:
         n = int(here.sum())
         if not n:
             continue
-        observed, half_width = ratio_estimate((label & here).sum(axis=0), here.sum(axis=0))
+        observed, half_width = ratio((label & here).sum(axis=0), here.sum(axis=0))
         out.append(Bin(lo, hi, n, float(risk[here].mean()), observed, half_width))
     return out
-
-
-def ratio_estimate(num: np.ndarray, den: np.ndarray) -> tuple[float, float]:
-    """sum(num) / sum(den) over trains (one entry each) and its 95 % half-width by the ratio
-    estimator: trains, not cycles, are the independent units."""
-    total = float(den.sum())
-    ratio = float(num.sum()) / total
-    return ratio, 1.96 * math.sqrt(float(((num - ratio * den) ** 2).sum())) / total
 
 
 def brier(risk: np.ndarray, label: np.ndarray) -> tuple[float, float]:
@@ -142,7 +134,7 @@ def pooled_bias(risk: np.ndarray, label: np.ndarray) -> Bias:
     hits, predicted = label.sum(axis=0).astype(float), risk.sum(axis=0)
     if float(predicted.sum()) <= 0:
         return Bias(float("inf") if hits.sum() else 1.0, 0.0)
-    return Bias(*ratio_estimate(hits, predicted))
+    return Bias(*ratio(hits, predicted))
 
 
 VERDICTS = ("calibrated", "uncalibrated: conservative", "uncalibrated: optimistic", "uncalibrated: mixed",
