@@ -103,7 +103,7 @@ def on_ticks(inputs: list, recorded: list, period_s: float) -> list:
     the last cycle are left out."""
     sends = [t for t, fid, _ in recorded if fid == BRAKE_DEMAND_ID]
     if not sends:
-        return []
+        raise BuildError("no BrakeDemand frame in the log: the recorded monitor's ticks cannot be known")
     t0 = sorted(t - k * period_s for k, t in enumerate(sends))[len(sends) // 20]
     end = len(sends) * period_s
     return [(t - t0, fid, fd, data) for t, fid, fd, data in inputs if 0.0 <= t - t0 <= end]

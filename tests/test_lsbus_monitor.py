@@ -83,3 +83,5 @@ def test_a_wall_clock_log_keeps_the_ticks_the_recorded_monitor_gave():
     played = lsbus_replay.on_ticks(inputs, recorded, 0.1)
     assert [d for _, _, _, d in played] == [b"b", b"c"]
     assert [round(t, 4) for t, _, _, _ in played] == [0.0122, 2.01]
+    with pytest.raises(lsbus_replay.BuildError, match="no BrakeDemand"):
+        lsbus_replay.on_ticks(inputs, [], 0.1)                              # not a monitor's log
