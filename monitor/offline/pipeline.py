@@ -154,6 +154,9 @@ RELAXED_COMPILE_SHARE = 0.7   # with a relaxation, compilation starts no round a
                               # below the lower bound without release cost) and the relaxation's bound
                               # loses little (-0.1241 -> -0.1207 against the model's own -0.1190)
 MIN_RELAX_S = 2.0     # fewer seconds left than this: the relaxation is not started
+RELAX_FLOOR_SHARE = 0.1   # the relaxation's least time: a compile round that overran RELAX_SHARE (a
+                          # loaded machine: CI's realtime phase, 2026-12-01) still leaves it this much
+                          # of the budget, and the run ends that much late rather than without its bound
 
 
 def run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]] = None,
@@ -208,7 +211,7 @@ def _run(model: POMDP, plan: Plan, progress: Optional[Callable[[Progress], None]
             raise ConfigError(f"[solver] warning_confirmation: {exc}") from None
         if "warning_confirmation" in part:
             confirmation, comp = entry, replace(comp, controller=ctrl, values=V, value=entry["value"])
-    relaxed = relaxed_bound(relax, plan, start + RELAX_SHARE * budget, say) if relax else None
+    relaxed = relaxed_bound(relax, plan, relax_deadline(start, budget), say) if relax else None
     ctrl = comp.controller
     say("risk column: each node's P(hazard within the horizon) on the exact closed loop")
     data = encode_with_risk(table_header(model, plan, sol, comp, relaxed, repaired, confirmation), model, ctrl)
@@ -355,6 +358,12 @@ def with_risk(data: bytes) -> tuple[bytes, table_format.Table]:
     recomputed; the controller is unchanged, so only the header's risk and the digest move."""
     old = table_format.decode_for_upgrade(data)
     return encode_with_risk(own_header(old), rebuild(dict(old.header)), Controller.of_table(old)), old
+
+
+def relax_deadline(start: float, budget: float) -> float:
+    """When the relaxation's solve stops: at RELAX_SHARE of the budget, but never less than
+    RELAX_FLOOR_SHARE of it from now."""
+    return max(start + RELAX_SHARE * budget, time.perf_counter() + RELAX_FLOOR_SHARE * budget)
 
 
 def relaxed_bound(relax: Relaxation, plan: Plan, deadline: float, say: Callable[[str], None]) -> Optional[RelaxedBound]:
