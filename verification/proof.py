@@ -75,8 +75,8 @@ WP_PAR = 2
 KERNEL = ("-machdep", "x86_64", "-warn-signed-downcast")
 STEP_KERNEL = KERNEL + ("-warn-unsigned-overflow",)
 EVA_STEP_OPTS = ("-eva-precision", "1")   # 0 alarms and the same 1,450 / 1,466 RTE assertions valid
-#                                            (m1 / m2) as at precision 3, in 27 s and 30 s instead of 75 s
-#                                            and 70 s (2026-12-01): CI's time, not the verdict
+#                                            (m1 / m2) as at precision 3; alone 27-34 s and 30 s against
+#                                            42 s and 44 s at 3 (2026-12-01): CI's time, not the verdict
 # SHA-256 is modular arithmetic by definition, so no -warn-unsigned-overflow for the table
 # check; its block loop is unrolled completely (otherwise EVA merges the block offsets)
 EVA_TABLE_OPTS = ("-eva-auto-loop-unroll", "1000", "-eva-slevel-function", "rg_sha256:2000")
